@@ -1,0 +1,231 @@
+//! Disparity from rectified stereo pairs: census-based Semi-Global Matching (Hirschmüller 2008)
+//! and window block matching.
+//!
+//! Conventions: images are rectified, and the left pixel `(x, y)` matches the right pixel
+//! `(x - d, y)` for a disparity `d` in the searched [`DisparityRange`] `min <= d < max`.
+//! Pixels without a trustworthy match are NaN in the returned [`DisparityMap`].
+//!
+//! # Example
+//!
+//! ```
+//! use stereo_disparity::{sgm, DisparityRange, GrayImage, SgmParams};
+//!
+//! // A random texture and the same texture shifted 5 px to the left: disparity 5 everywhere.
+//! let texture = |x: i64, y: i64| ((x * 7919 + y * 104_729) % 65_521) as u16;
+//! let left = GrayImage::from_fn(64, 32, |x, y| texture(x as i64, y as i64));
+//! let right = GrayImage::from_fn(64, 32, |x, y| texture(x as i64 + 5, y as i64));
+//! let params = SgmParams { range: DisparityRange::new(0, 16)?, ..SgmParams::default() };
+//! let disparity = sgm(&left, &right, &params)?;
+//! assert!((disparity.get(40, 16) - 5.0).abs() < 0.5);
+//! Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod aggregate;
+mod bm;
+mod census;
+mod cost;
+mod image;
+mod sgm;
+mod wta;
+
+pub use bm::block_match;
+pub use image::{DisparityMap, GrayImage, Image};
+pub use sgm::sgm;
+
+/// Errors a matcher reports instead of panicking on unusable input.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// Left and right images differ in size.
+    #[error("left image is {}x{} but right image is {}x{}; a rectified pair has equal sizes", left.0, left.1, right.0, right.1)]
+    SizeMismatch { left: (usize, usize), right: (usize, usize) },
+    /// The disparity range `min..max` contains no disparity.
+    #[error("disparity range is empty: min {min} must be below max {max}")]
+    EmptyRange { min: i32, max: i32 },
+    /// More disparities are searched than the image is wide.
+    #[error("disparity range {min}..{max} ({count} disparities) is wider than the image ({width} px)")]
+    RangeWiderThanImage { min: i32, max: i32, count: usize, width: usize },
+    /// The image is smaller than the matching window.
+    #[error("image is {width}x{height}, smaller than the {window_width}x{window_height} matching window")]
+    ImageTooSmall { width: usize, height: usize, window_width: usize, window_height: usize },
+    /// A parameter is outside its accepted range.
+    #[error("invalid parameter {name}: {message}")]
+    InvalidParameter { name: &'static str, message: String },
+    /// A buffer's length does not match the image size it was given with.
+    #[error("buffer of {len} samples does not hold a {width}x{height} image")]
+    BufferSize { width: usize, height: usize, len: usize },
+}
+
+/// The disparities searched: `min <= d < max` (so `max - min` is OpenCV's `numDisparities`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DisparityRange {
+    pub min: i32,
+    pub max: i32,
+}
+
+impl DisparityRange {
+    /// Checks that the range holds at least one disparity.
+    pub fn new(min: i32, max: i32) -> Result<Self, Error> {
+        if max <= min {
+            return Err(Error::EmptyRange { min, max });
+        }
+        Ok(DisparityRange { min, max })
+    }
+
+    /// How many disparities are searched.
+    pub fn count(&self) -> usize {
+        (self.max as i64 - self.min as i64).max(0) as usize
+    }
+
+    /// The default search range for an image `width` pixels wide: `0..` a quarter of the width,
+    /// rounded up to a multiple of 16 (at least 16, at most the width).
+    pub fn default_for_width(width: usize) -> Self {
+        let quarter = width.div_ceil(4).div_ceil(16) * 16;
+        let max = quarter.clamp(16.min(width), width.max(1));
+        DisparityRange { min: 0, max: max as i32 }
+    }
+
+    pub(crate) fn check(&self, width: usize) -> Result<(), Error> {
+        if self.max <= self.min {
+            return Err(Error::EmptyRange { min: self.min, max: self.max });
+        }
+        if self.count() > width {
+            return Err(Error::RangeWiderThanImage {
+                min: self.min,
+                max: self.max,
+                count: self.count(),
+                width,
+            });
+        }
+        Ok(())
+    }
+}
+
+impl Default for DisparityRange {
+    fn default() -> Self {
+        DisparityRange { min: 0, max: 64 }
+    }
+}
+
+/// How many path directions SGM aggregates over.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathCount {
+    /// Horizontal and vertical only: faster, more streaking.
+    Four,
+    /// Horizontal, vertical and both diagonals (Hirschmüller's recommended default).
+    Eight,
+}
+
+/// How the integer winner-takes-all disparity is refined below one pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Subpixel {
+    /// Integer disparities only.
+    None,
+    /// A parabola through the costs at `d-1, d, d+1`.
+    Parabola,
+    /// Two lines of equal and opposite slope through the same three costs; suits census/L1 costs.
+    Equiangular,
+}
+
+/// The census transform window (odd width and height; at most 64 comparisons).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CensusWindow {
+    pub width: usize,
+    pub height: usize,
+}
+
+impl CensusWindow {
+    pub(crate) fn check(&self) -> Result<(), Error> {
+        if self.width % 2 == 0
+            || self.height % 2 == 0
+            || self.width * self.height > 65
+            || self.width * self.height < 9
+        {
+            return Err(Error::InvalidParameter {
+                name: "census window",
+                message: format!(
+                    "{}x{} must have odd sides and between 9 and 65 pixels (e.g. 9x7)",
+                    self.width, self.height
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Semi-Global Matching parameters. Costs are Hamming distances between census bit strings,
+/// so `p1`/`p2` are in "differing bits".
+#[derive(Clone, Debug, PartialEq)]
+pub struct SgmParams {
+    pub range: DisparityRange,
+    pub census: CensusWindow,
+    pub paths: PathCount,
+    /// Penalty for a disparity change of one pixel along a path.
+    pub p1: u16,
+    /// Penalty for a larger disparity jump along a path (before adaptation to the image gradient).
+    pub p2: u16,
+    /// A match is kept only if every disparity more than one pixel away costs at least
+    /// `(100 + uniqueness_ratio) %` of the best; 0 disables the check.
+    pub uniqueness_ratio: u32,
+    /// Left-right consistency: the largest allowed difference (px) between the left disparity and
+    /// the right view's disparity at the matched pixel; `None` disables the check.
+    pub lr_max_diff: Option<f32>,
+    pub subpixel: Subpixel,
+}
+
+impl Default for SgmParams {
+    fn default() -> Self {
+        SgmParams {
+            range: DisparityRange::default(),
+            census: CensusWindow { width: 9, height: 7 },
+            paths: PathCount::Eight,
+            p1: 10,
+            p2: 120,
+            uniqueness_ratio: 5,
+            lr_max_diff: Some(1.0),
+            subpixel: Subpixel::Equiangular,
+        }
+    }
+}
+
+/// The window cost block matching uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BmCost {
+    /// Sum of absolute differences on an x-Sobel prefiltered image (as OpenCV's StereoBM).
+    Sad,
+    /// Sum of Hamming distances of per-pixel 5x5 census strings: robust to gain and bias changes.
+    Census,
+}
+
+/// Block matching parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BmParams {
+    pub range: DisparityRange,
+    /// Side of the square matching window (odd, at least 3).
+    pub block_size: usize,
+    pub cost: BmCost,
+    /// As in [`SgmParams::uniqueness_ratio`].
+    pub uniqueness_ratio: u32,
+    /// As in [`SgmParams::lr_max_diff`].
+    pub lr_max_diff: Option<f32>,
+    pub subpixel: Subpixel,
+}
+
+impl Default for BmParams {
+    fn default() -> Self {
+        BmParams {
+            range: DisparityRange::default(),
+            block_size: 11,
+            cost: BmCost::Census,
+            uniqueness_ratio: 10,
+            lr_max_diff: Some(1.0),
+            subpixel: Subpixel::Parabola,
+        }
+    }
+}
+
+pub(crate) fn check_pair(left: &GrayImage, right: &GrayImage) -> Result<(), Error> {
+    if left.size() != right.size() {
+        return Err(Error::SizeMismatch { left: left.size(), right: right.size() });
+    }
+    Ok(())
+}

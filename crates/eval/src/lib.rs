@@ -1,0 +1,1 @@
+//! Middlebury-style accuracy metrics of a disparity map against ground truth.

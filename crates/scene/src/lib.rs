@@ -1,0 +1,1 @@
+//! Synthetic rectified stereo scenes with exact ground-truth disparity.
