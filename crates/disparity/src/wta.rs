@@ -1,1 +1,146 @@
-//! TODO
+//! Winner-takes-all disparity selection over an aggregated cost volume (`[y][x][d]`), with
+//! subpixel refinement, the uniqueness test and the left-right consistency check.
+
+use rayon::prelude::*;
+
+use crate::{DisparityMap, DisparityRange, Subpixel};
+
+/// What winner-takes-all keeps and how it refines.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Selection {
+    pub range: DisparityRange,
+    pub uniqueness_ratio: u32,
+    pub lr_max_diff: Option<f32>,
+    pub subpixel: Subpixel,
+}
+
+/// The disparity indices `k` (disparity `range.min + k`) for which left pixel `x` has a match
+/// inside a right image `width` pixels wide.
+#[inline]
+fn feasible_left(x: usize, width: usize, range: DisparityRange) -> std::ops::Range<usize> {
+    let (x, w, min, nd) = (x as i64, width as i64, range.min as i64, range.count() as i64);
+    let lo = (x - (w - 1) - min).max(0);
+    let hi = (x - min + 1).min(nd);
+    lo.min(hi) as usize..hi.max(lo) as usize
+}
+
+/// The disparity indices for which right pixel `xr` has a match `xr + d` inside the left image.
+#[inline]
+fn feasible_right(xr: usize, width: usize, range: DisparityRange) -> std::ops::Range<usize> {
+    let (xr, w, min, nd) = (xr as i64, width as i64, range.min as i64, range.count() as i64);
+    let lo = (-xr - min).max(0);
+    let hi = (w - xr - min).min(nd);
+    lo.min(hi) as usize..hi.max(lo) as usize
+}
+
+/// Sub-pixel offset in `[-0.5, 0.5]` of the cost minimum from the three costs around it.
+#[inline]
+pub(crate) fn subpixel_offset(method: Subpixel, before: f32, best: f32, after: f32) -> f32 {
+    let offset = match method {
+        Subpixel::None => 0.0,
+        Subpixel::Parabola => {
+            let curvature = before - 2.0 * best + after;
+            if curvature > 0.0 {
+                (before - after) / (2.0 * curvature)
+            } else {
+                0.0
+            }
+        }
+        Subpixel::Equiangular => {
+            let slope = (before - best).max(after - best);
+            if slope > 0.0 {
+                (before - after) / (2.0 * slope)
+            } else {
+                0.0
+            }
+        }
+    };
+    offset.clamp(-0.5, 0.5)
+}
+
+/// Selects the left-view disparity of every pixel into `out` (NaN where rejected).
+pub(crate) fn select_disparities(sum: &[u16], width: usize, nd: usize, sel: Selection, out: &mut DisparityMap) {
+    out.as_mut_slice().par_chunks_mut(width).zip(sum.par_chunks(width * nd)).for_each_init(
+        || vec![0usize; width],
+        |right_best, (out_row, costs)| select_row(costs, width, nd, sel, right_best, out_row),
+    );
+}
+
+fn select_row(costs: &[u16], width: usize, nd: usize, sel: Selection, right_best: &mut [usize], out: &mut [f32]) {
+    let at = |x: usize, k: usize| costs[x * nd + k];
+
+    if sel.lr_max_diff.is_some() {
+        // Right-view winner-takes-all from the same volume: right pixel xr with disparity d is
+        // left pixel xr + d (Hirschmüller's shortcut instead of a second aggregation).
+        for (xr, best) in right_best.iter_mut().enumerate() {
+            let ks = feasible_right(xr, width, sel.range);
+            *best = ks.clone().min_by_key(|&k| (at((xr as i64 + sel.range.min as i64 + k as i64) as usize, k), k)).unwrap_or(usize::MAX);
+        }
+    }
+
+    for (x, o) in out.iter_mut().enumerate() {
+        *o = f32::NAN;
+        let ks = feasible_left(x, width, sel.range);
+        if ks.is_empty() {
+            continue;
+        }
+        let c = &costs[x * nd..(x + 1) * nd];
+        let mut best = ks.start;
+        for k in ks.clone() {
+            if c[k] < c[best] {
+                best = k;
+            }
+        }
+        if sel.uniqueness_ratio > 0 {
+            let second = ks.clone().filter(|k| k.abs_diff(best) > 1).map(|k| c[k]).min();
+            if let Some(second) = second {
+                if u64::from(c[best]) * u64::from(100 + sel.uniqueness_ratio) > u64::from(second) * 100 {
+                    continue;
+                }
+            }
+        }
+        let d_int = sel.range.min as i64 + best as i64;
+        if let Some(max_diff) = sel.lr_max_diff {
+            let xr = x as i64 - d_int;
+            let kr = right_best[xr as usize];
+            if kr == usize::MAX || (kr as f32 - best as f32).abs() > max_diff {
+                continue;
+            }
+        }
+        let offset = if best > ks.start && best + 1 < ks.end {
+            subpixel_offset(sel.subpixel, f32::from(c[best - 1]), f32::from(c[best]), f32::from(c[best + 1]))
+        } else {
+            0.0
+        };
+        *o = d_int as f32 + offset;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn feasible_ranges_respect_the_image_borders() {
+        let range = DisparityRange { min: 0, max: 16 };
+        assert_eq!(feasible_left(0, 100, range), 0..1);
+        assert_eq!(feasible_left(5, 100, range), 0..6);
+        assert_eq!(feasible_left(50, 100, range), 0..16);
+        assert_eq!(feasible_right(99, 100, range), 0..1);
+        assert_eq!(feasible_right(10, 100, range), 0..16);
+        let negative = DisparityRange { min: -4, max: 4 };
+        assert_eq!(feasible_left(98, 100, negative), 3..8);
+        assert_eq!(feasible_right(0, 100, negative), 4..8);
+    }
+
+    #[test]
+    fn subpixel_fits_find_the_true_minimum_of_symmetric_shapes() {
+        // V shape with its tip at +0.25: equiangular is exact.
+        let v = |t: f32| (t - 0.25).abs();
+        assert!((subpixel_offset(Subpixel::Equiangular, v(-1.0), v(0.0), v(1.0)) - 0.25).abs() < 1e-6);
+        // Parabola with its minimum at -0.3: the parabola fit is exact.
+        let p = |t: f32| (t + 0.3) * (t + 0.3);
+        assert!((subpixel_offset(Subpixel::Parabola, p(-1.0), p(0.0), p(1.0)) + 0.3).abs() < 1e-6);
+        assert_eq!(subpixel_offset(Subpixel::None, 3.0, 1.0, 2.0), 0.0);
+    }
+}
