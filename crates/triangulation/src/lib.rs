@@ -1,12 +1,80 @@
-//! Metric depth from disparity for a rectified rig: `Z = B·f / ((d + doffs)·p)`.
+//! Metric depth and 3-D points from disparity for a rectified rig:
+//! `Z = B·f / ((d + doffs)·p)`.
+//!
+//! With the baseline `B` in mm, the focal length `f` in mm, the pixel pitch `p` in µm and the
+//! disparity `d` (plus the principal-point offset `doffs`) in pixels, the depth comes out in
+//! metres: `Z[m] = B[mm]·f[mm] / ((d + doffs)·p[µm])`, or equivalently
+//! `Z[m] = (B[mm] / 1000)·f_px / (d + doffs)` with the focal length in pixels
+//! `f_px = f[mm]·1000 / p[µm]`.
+//!
+//! ```
+//! use stereo_triangulation::{depth_map, DepthStats, Rig};
+//! use stereo_disparity::DisparityMap;
+//!
+//! // 80 mm baseline, 12 mm lens, 4 µm pixels: f = 3000 px.
+//! let rig = Rig::from_datasheet(80.0, 12.0, 4.0)?;
+//! assert_eq!(rig.focal_px, 3000.0);
+//! // 400 px of disparity is 0.6 m away.
+//! assert!((rig.depth(400.0).unwrap() - 0.6).abs() < 1e-12);
+//! // A zero or negative (or NaN) disparity has no depth.
+//! assert_eq!(rig.depth(0.0), None);
+//!
+//! // Whole maps: NaN disparities become NaN depths.
+//! let disparity = DisparityMap::from_vec(2, 1, vec![400.0, f32::NAN])?;
+//! let depth = depth_map(&disparity, &rig);
+//! assert!((depth.get(0, 0) - 0.6).abs() < 1e-6);
+//! assert!(depth.get(1, 0).is_nan());
+//!
+//! let stats = DepthStats::from_depth(&depth);
+//! assert_eq!(stats.valid_pixels, 1);
+//! assert_eq!(stats.density_percent, 50.0);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! Camera frame of [`Rig::point`]: x to the right, y down, z forward (along the optical axis),
+//! all in metres.
 
+use nalgebra::Point3;
+use rayon::prelude::*;
 use stereo_disparity::{DisparityMap, Image};
 
 /// Invalid rig parameters.
-#[derive(Debug, thiserror::Error)]
+///
+/// Displays as e.g. `invalid baseline: -80 mm (must be a finite number > 0 mm)`.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Error {
-    #[error("invalid {name}: {value} ({expected})")]
-    InvalidParameter { name: &'static str, value: f64, expected: &'static str },
+    #[error("invalid {name}: {value} {unit} (must be {expected})")]
+    InvalidParameter {
+        /// The parameter, e.g. `"baseline"`.
+        name: &'static str,
+        /// The rejected value.
+        value: f64,
+        /// The unit of `value`, e.g. `"mm"`.
+        unit: &'static str,
+        /// The accepted range, e.g. `"a finite number > 0 mm"`.
+        expected: &'static str,
+    },
+}
+
+fn positive(
+    name: &'static str,
+    value: f64,
+    unit: &'static str,
+    expected: &'static str,
+) -> Result<f64, Error> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(Error::InvalidParameter { name, value, unit, expected })
+    }
+}
+
+fn finite(name: &'static str, value: f64, unit: &'static str) -> Result<f64, Error> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(Error::InvalidParameter { name, value, unit, expected: "a finite number" })
+    }
 }
 
 /// A rectified stereo rig.
@@ -18,26 +86,484 @@ pub struct Rig {
     pub focal_px: f64,
     /// Disparity offset between the principal points (Middlebury's `doffs`), pixels.
     pub doffs: f64,
-    /// Principal point in pixels; `None` means the image centre.
+    /// Principal point `(cx, cy)` in pixels; `None` means the centre of the pixel grid,
+    /// see [`Rig::principal_point_for`].
     pub principal_point: Option<(f64, f64)>,
 }
 
 impl Rig {
     /// A rig from datasheet values: baseline and focal length in mm, pixel pitch in µm.
+    ///
+    /// All three must be finite and > 0. `doffs` is 0 and the principal point is the image
+    /// centre; change them with [`Rig::with_doffs`] and [`Rig::with_principal_point`].
     pub fn from_datasheet(baseline_mm: f64, focal_mm: f64, pixel_um: f64) -> Result<Self, Error> {
-        let _ = (baseline_mm, focal_mm, pixel_um);
-        todo!()
+        let baseline_mm = positive("baseline", baseline_mm, "mm", "a finite number > 0 mm")?;
+        let focal_mm = positive("focal length", focal_mm, "mm", "a finite number > 0 mm")?;
+        let pixel_um = positive("pixel size", pixel_um, "µm", "a finite number > 0 µm")?;
+        Self::from_focal_px(baseline_mm, focal_mm * 1000.0 / pixel_um)
     }
 
-    /// Depth in metres for disparity `d` pixels; `None` when `d + doffs <= 0` or not finite.
+    /// A rig from the baseline in mm and the focal length in pixels (both finite and > 0).
+    pub fn from_focal_px(baseline_mm: f64, focal_px: f64) -> Result<Self, Error> {
+        Ok(Rig {
+            baseline_mm: positive("baseline", baseline_mm, "mm", "a finite number > 0 mm")?,
+            focal_px: positive("focal length", focal_px, "px", "a finite number > 0 px")?,
+            doffs: 0.0,
+            principal_point: None,
+        })
+    }
+
+    /// The same rig with the disparity offset `doffs` in pixels (finite), added to every
+    /// disparity before triangulating: Middlebury's `doffs`, the x-difference of the principal
+    /// points `cx_right - cx_left`.
+    pub fn with_doffs(self, doffs: f64) -> Result<Self, Error> {
+        Ok(Rig { doffs: finite("disparity offset", doffs, "px")?, ..self })
+    }
+
+    /// The same rig with an explicit principal point `(cx, cy)` in pixels (both finite).
+    pub fn with_principal_point(self, cx: f64, cy: f64) -> Result<Self, Error> {
+        let cx = finite("principal point x", cx, "px")?;
+        let cy = finite("principal point y", cy, "px")?;
+        Ok(Rig { principal_point: Some((cx, cy)), ..self })
+    }
+
+    /// The principal point for an image of `width × height` pixels: the explicit one if set,
+    /// else the centre of the pixel grid `((width - 1) / 2, (height - 1) / 2)` (pixel `x`
+    /// covers `[x - 0.5, x + 0.5]`, so this is the geometric image centre).
+    pub fn principal_point_for(&self, width: usize, height: usize) -> (f64, f64) {
+        self.principal_point.unwrap_or(((width as f64 - 1.0) / 2.0, (height as f64 - 1.0) / 2.0))
+    }
+
+    /// Depth in metres for disparity `d` pixels; `None` when `d` is not finite,
+    /// `d + doffs <= 0`, or the depth would overflow.
     pub fn depth(&self, d: f64) -> Option<f64> {
-        let _ = d;
-        todo!()
+        let denom = d + self.doffs;
+        if !d.is_finite() || denom.is_nan() || denom <= 0.0 {
+            return None;
+        }
+        // Dividing by 1000 last keeps exact datasheet products exact (80·3000/(400·1000) = 0.6).
+        let z = self.baseline_mm * self.focal_px / (denom * 1000.0);
+        (z.is_finite() && z > 0.0).then_some(z)
+    }
+
+    /// The 3-D point (metres, x right, y down, z forward) seen at pixel `(x, y)` with
+    /// disparity `d` in an image of `size = (width, height)` (used for the default principal
+    /// point, see [`Rig::principal_point_for`]). `None` where [`Rig::depth`] is `None`.
+    ///
+    /// `X = (x - cx)·Z / f_px`, `Y = (y - cy)·Z / f_px`.
+    pub fn point(&self, x: f64, y: f64, d: f64, size: (usize, usize)) -> Option<Point3<f64>> {
+        let z = self.depth(d)?;
+        let (cx, cy) = self.principal_point_for(size.0, size.1);
+        Some(Point3::new((x - cx) * z / self.focal_px, (y - cy) * z / self.focal_px, z))
+    }
+
+    /// Depth change in metres for a disparity change of `disparity_step_px` pixels at depth
+    /// `z_m` metres: `ΔZ ≈ Z²·Δd / (B·f_px)` with `B` in metres (the first-order term of
+    /// `Z(d) = B·f_px / d`). E.g. a quarter-pixel step of a 80 mm / 3000 px rig at 0.6 m is
+    /// 0.375 mm.
+    pub fn depth_resolution(&self, z_m: f64, disparity_step_px: f64) -> f64 {
+        z_m * z_m * disparity_step_px * 1000.0 / (self.baseline_mm * self.focal_px)
     }
 }
 
-/// The depth map (metres, NaN where invalid) of a disparity map.
+/// The depth map (metres, NaN where invalid) of a disparity map: pixels whose
+/// [`Rig::depth`] is `None`, or whose depth does not fit an `f32`, are NaN, so the map never
+/// holds infinite, zero or negative depths. Rows are computed in parallel.
 pub fn depth_map(disparity: &DisparityMap, rig: &Rig) -> Image<f32> {
-    let _ = (disparity, rig);
-    todo!()
+    let (width, height) = disparity.size();
+    let mut out = Image::new(width, height, f32::NAN);
+    if width == 0 {
+        return out;
+    }
+    out.as_mut_slice().par_chunks_mut(width).zip(disparity.as_slice().par_chunks(width)).for_each(
+        |(dst, src)| {
+            for (z, &d) in dst.iter_mut().zip(src) {
+                *z = match rig.depth(f64::from(d)) {
+                    Some(z) => {
+                        let z = z as f32;
+                        if z.is_finite() && z > 0.0 {
+                            z
+                        } else {
+                            f32::NAN
+                        }
+                    }
+                    None => f32::NAN,
+                };
+            }
+        },
+    );
+    out
+}
+
+/// A triangulated pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Point {
+    /// Pixel column.
+    pub x: usize,
+    /// Pixel row.
+    pub y: usize,
+    /// Disparity at the pixel, pixels.
+    pub disparity: f32,
+    /// Camera-frame position in metres (x right, y down, z forward).
+    pub position: Point3<f64>,
+}
+
+/// The 3-D points of every `step`-th pixel (in both directions, starting at `(0, 0)`) that has a
+/// depth, row by row. A `step` of 0 is treated as 1.
+pub fn points(disparity: &DisparityMap, rig: &Rig, step: usize) -> Vec<Point> {
+    let step = step.max(1);
+    let size = disparity.size();
+    let mut out = Vec::new();
+    for y in (0..size.1).step_by(step) {
+        let row = disparity.row(y);
+        for x in (0..size.0).step_by(step) {
+            let d = row[x];
+            if let Some(position) = rig.point(x as f64, y as f64, f64::from(d), size) {
+                out.push(Point { x, y, disparity: d, position });
+            }
+        }
+    }
+    out
+}
+
+/// The `p`-th percentile (0..=100) of ascending `sorted`, by linear interpolation between the
+/// closest ranks: position `h = (n - 1)·p / 100`, value
+/// `v[⌊h⌋] + (h - ⌊h⌋)·(v[⌊h⌋ + 1] - v[⌊h⌋])` (NumPy's default `"linear"` method).
+/// `None` when `sorted` is empty.
+pub fn percentile(sorted: &[f64], p: f64) -> Option<f64> {
+    let n = sorted.len();
+    if n == 0 {
+        return None;
+    }
+    let h = (n - 1) as f64 * p.clamp(0.0, 100.0) / 100.0;
+    let lo = h.floor() as usize;
+    let hi = (lo + 1).min(n - 1);
+    let frac = h - lo as f64;
+    Some(sorted[lo] + frac * (sorted[hi] - sorted[lo]))
+}
+
+/// Summary of the valid samples of a map.
+struct Summary {
+    width: usize,
+    height: usize,
+    valid_pixels: usize,
+    total_pixels: usize,
+    density_percent: f64,
+    min: Option<f64>,
+    max: Option<f64>,
+    mean: Option<f64>,
+    median: Option<f64>,
+    p5: Option<f64>,
+    p95: Option<f64>,
+}
+
+fn summarize(image: &Image<f32>, valid: impl Fn(f32) -> bool) -> Summary {
+    let (width, height) = image.size();
+    let mut values: Vec<f64> =
+        image.as_slice().iter().copied().filter(|&v| valid(v)).map(f64::from).collect();
+    values.sort_unstable_by(f64::total_cmp);
+    let total_pixels = width * height;
+    let valid_pixels = values.len();
+    let density_percent =
+        if total_pixels == 0 { 0.0 } else { 100.0 * valid_pixels as f64 / total_pixels as f64 };
+    let mean = (valid_pixels > 0).then(|| values.iter().sum::<f64>() / valid_pixels as f64);
+    Summary {
+        width,
+        height,
+        valid_pixels,
+        total_pixels,
+        density_percent,
+        min: values.first().copied(),
+        max: values.last().copied(),
+        mean,
+        median: percentile(&values, 50.0),
+        p5: percentile(&values, 5.0),
+        p95: percentile(&values, 95.0),
+    }
+}
+
+/// Statistics of a depth map. Valid pixels are finite and > 0; depths are in metres and
+/// `None` when there is no valid pixel. Percentiles (and the median) interpolate linearly
+/// between closest ranks, see [`percentile`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct DepthStats {
+    pub width: usize,
+    pub height: usize,
+    pub valid_pixels: usize,
+    pub total_pixels: usize,
+    /// `100 · valid_pixels / total_pixels` (0 for an empty map).
+    pub density_percent: f64,
+    pub min: Option<f64>,
+    pub max: Option<f64>,
+    pub mean: Option<f64>,
+    pub median: Option<f64>,
+    pub p5: Option<f64>,
+    pub p95: Option<f64>,
+}
+
+impl DepthStats {
+    /// Statistics of `depth` (metres, NaN / non-positive = invalid).
+    pub fn from_depth(depth: &Image<f32>) -> Self {
+        let s = summarize(depth, |v| v.is_finite() && v > 0.0);
+        DepthStats {
+            width: s.width,
+            height: s.height,
+            valid_pixels: s.valid_pixels,
+            total_pixels: s.total_pixels,
+            density_percent: s.density_percent,
+            min: s.min,
+            max: s.max,
+            mean: s.mean,
+            median: s.median,
+            p5: s.p5,
+            p95: s.p95,
+        }
+    }
+}
+
+/// Statistics of a disparity map. Valid pixels are finite (negative disparities count);
+/// values are in pixels and `None` when there is no valid pixel. Percentiles as in
+/// [`DepthStats`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct DisparityStats {
+    pub width: usize,
+    pub height: usize,
+    pub valid_pixels: usize,
+    pub total_pixels: usize,
+    /// `100 · valid_pixels / total_pixels` (0 for an empty map).
+    pub density_percent: f64,
+    pub min: Option<f64>,
+    pub max: Option<f64>,
+    pub mean: Option<f64>,
+    pub median: Option<f64>,
+    pub p5: Option<f64>,
+    pub p95: Option<f64>,
+}
+
+impl DisparityStats {
+    /// Statistics of `disparity` (pixels, NaN / infinite = invalid).
+    pub fn from_disparity(disparity: &DisparityMap) -> Self {
+        let s = summarize(disparity, f32::is_finite);
+        DisparityStats {
+            width: s.width,
+            height: s.height,
+            valid_pixels: s.valid_pixels,
+            total_pixels: s.total_pixels,
+            density_percent: s.density_percent,
+            min: s.min,
+            max: s.max,
+            mean: s.mean,
+            median: s.median,
+            p5: s.p5,
+            p95: s.p95,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: f64, b: f64, tol: f64) -> bool {
+        (a - b).abs() <= tol
+    }
+
+    #[test]
+    fn datasheet_examples() {
+        let rig = Rig::from_datasheet(80.0, 12.0, 4.0).unwrap();
+        assert_eq!(rig.focal_px, 3000.0);
+        assert!(close(rig.depth(400.0).unwrap(), 0.6, 1e-12));
+        let rig = Rig::from_datasheet(200.0, 6.0, 2.5).unwrap();
+        assert_eq!(rig.focal_px, 2400.0);
+        assert!(close(rig.depth(150.0).unwrap(), 3.2, 1e-12));
+    }
+
+    #[test]
+    fn from_focal_px_matches_datasheet() {
+        let a = Rig::from_datasheet(80.0, 12.0, 4.0).unwrap();
+        let b = Rig::from_focal_px(80.0, 3000.0).unwrap();
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn invalid_parameters_are_named() {
+        let e = Rig::from_datasheet(-80.0, 12.0, 4.0).unwrap_err();
+        assert_eq!(e.to_string(), "invalid baseline: -80 mm (must be a finite number > 0 mm)");
+        let e = Rig::from_datasheet(80.0, 0.0, 4.0).unwrap_err();
+        assert_eq!(e.to_string(), "invalid focal length: 0 mm (must be a finite number > 0 mm)");
+        let e = Rig::from_datasheet(80.0, 12.0, f64::NAN).unwrap_err();
+        assert_eq!(e.to_string(), "invalid pixel size: NaN µm (must be a finite number > 0 µm)");
+        let e = Rig::from_datasheet(f64::INFINITY, 12.0, 4.0).unwrap_err();
+        assert!(matches!(e, Error::InvalidParameter { name: "baseline", .. }));
+        let e = Rig::from_focal_px(80.0, -1.0).unwrap_err();
+        assert_eq!(e.to_string(), "invalid focal length: -1 px (must be a finite number > 0 px)");
+        let rig = Rig::from_focal_px(80.0, 3000.0).unwrap();
+        let e = rig.clone().with_doffs(f64::NAN).unwrap_err();
+        assert_eq!(e.to_string(), "invalid disparity offset: NaN px (must be a finite number)");
+        let e = rig.clone().with_principal_point(1.0, f64::NEG_INFINITY).unwrap_err();
+        assert!(matches!(e, Error::InvalidParameter { name: "principal point y", .. }));
+        assert!(rig.with_principal_point(f64::NAN, 1.0).is_err());
+    }
+
+    #[test]
+    fn depth_rejects_bad_disparities_and_uses_doffs() {
+        let rig = Rig::from_focal_px(80.0, 3000.0).unwrap();
+        assert_eq!(rig.depth(0.0), None);
+        assert_eq!(rig.depth(-1.0), None);
+        assert_eq!(rig.depth(f64::NAN), None);
+        assert_eq!(rig.depth(f64::INFINITY), None);
+        assert_eq!(rig.depth(1e-320), None, "overflowing depth");
+        let rig = rig.with_doffs(100.0).unwrap();
+        // 80·3000 / (300 + 100) / 1000 = 0.6
+        assert!(close(rig.depth(300.0).unwrap(), 0.6, 1e-12));
+        assert_eq!(rig.depth(-100.0), None);
+        assert!(close(rig.depth(-50.0).unwrap(), 4.8, 1e-12));
+    }
+
+    #[test]
+    fn depth_map_marks_invalid_as_nan() {
+        let rig = Rig::from_datasheet(80.0, 12.0, 4.0).unwrap();
+        let d =
+            DisparityMap::from_vec(3, 2, vec![400.0, 0.0, -3.0, f32::NAN, f32::INFINITY, f32::MIN_POSITIVE])
+                .unwrap();
+        let z = depth_map(&d, &rig);
+        assert_eq!(z.size(), (3, 2));
+        assert!(close(f64::from(z.get(0, 0)), 0.6, 1e-7));
+        for (x, y) in [(1, 0), (2, 0), (0, 1), (1, 1), (2, 1)] {
+            assert!(z.get(x, y).is_nan(), "({x}, {y}) = {}", z.get(x, y));
+        }
+        let empty = depth_map(&DisparityMap::new(0, 4, 1.0), &rig);
+        assert_eq!(empty.size(), (0, 4));
+    }
+
+    #[test]
+    fn depth_map_on_many_rows_matches_rig_depth() {
+        let rig = Rig::from_datasheet(200.0, 6.0, 2.5).unwrap().with_doffs(1.5).unwrap();
+        let d = DisparityMap::from_fn(37, 53, |x, y| (x * 7 + y * 3) as f32 - 20.0);
+        let z = depth_map(&d, &rig);
+        for y in 0..53 {
+            for x in 0..37 {
+                match rig.depth(f64::from(d.get(x, y))) {
+                    Some(e) => assert_eq!(z.get(x, y), e as f32),
+                    None => assert!(z.get(x, y).is_nan()),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn points_use_pixel_grid_centre() {
+        let rig = Rig::from_focal_px(80.0, 3000.0).unwrap();
+        assert_eq!(rig.principal_point_for(5, 3), (2.0, 1.0));
+        assert_eq!(rig.principal_point_for(640, 480), (319.5, 239.5));
+        // Centre pixel: on the optical axis.
+        let p = rig.point(2.0, 1.0, 400.0, (5, 3)).unwrap();
+        assert!(close(p.x, 0.0, 1e-15) && close(p.y, 0.0, 1e-15) && close(p.z, 0.6, 1e-12));
+        // 300 px right of and 150 px below the centre at 0.6 m: X = 300·0.6/3000 = 0.06.
+        let p = rig.point(302.0, 151.0, 400.0, (5, 3)).unwrap();
+        assert!(close(p.x, 0.06, 1e-12) && close(p.y, 0.03, 1e-12) && close(p.z, 0.6, 1e-12));
+        let p = rig.point(0.0, 0.0, 400.0, (5, 3)).unwrap();
+        assert!(close(p.x, -2.0 * 0.6 / 3000.0, 1e-15) && p.y < 0.0);
+        assert_eq!(rig.point(0.0, 0.0, f64::NAN, (5, 3)), None);
+
+        let rig = rig.with_principal_point(10.0, 20.0).unwrap();
+        let p = rig.point(10.0, 20.0, 400.0, (5, 3)).unwrap();
+        assert_eq!((p.x, p.y), (0.0, 0.0));
+    }
+
+    #[test]
+    fn points_skip_invalid_and_step() {
+        let rig = Rig::from_focal_px(80.0, 3000.0).unwrap();
+        let d = DisparityMap::from_fn(4, 3, |x, y| if (x + y) % 3 == 0 { f32::NAN } else { 400.0 });
+        let all = points(&d, &rig, 1);
+        assert_eq!(all.len(), 12 - 4);
+        assert!(all.iter().all(|p| (p.x + p.y) % 3 != 0 && close(p.position.z, 0.6, 1e-12)));
+        assert_eq!(all[0].x, 1);
+        assert_eq!(all[0].y, 0);
+        assert_eq!(points(&d, &rig, 0), all);
+        // step 2 visits (0,0) (NaN), (2,0), (0,2) and (2,2).
+        let sub: Vec<_> = points(&d, &rig, 2).iter().map(|p| (p.x, p.y)).collect();
+        assert_eq!(sub, vec![(2, 0), (0, 2), (2, 2)]);
+    }
+
+    #[test]
+    fn depth_resolution_by_hand() {
+        let rig = Rig::from_datasheet(80.0, 12.0, 4.0).unwrap();
+        // 0.36 m² · 1 px / (0.08 m · 3000 px) = 0.0015 m, = |dZ/dd| at d = 400.
+        assert!(close(rig.depth_resolution(0.6, 1.0), 0.0015, 1e-15));
+        assert!(close(rig.depth_resolution(0.6, 0.25), 0.000375, 1e-15));
+        let rig = Rig::from_datasheet(200.0, 6.0, 2.5).unwrap();
+        // 3.2² · 0.25 / (0.2 · 2400) = 2.56 / 480 = 0.0053333…
+        assert!(close(rig.depth_resolution(3.2, 0.25), 2.56 / 480.0, 1e-15));
+        // Agrees with the finite difference of depth().
+        let fd = rig.depth(150.0).unwrap() - rig.depth(150.001).unwrap();
+        assert!(close(rig.depth_resolution(3.2, 0.001), fd, 1e-7));
+    }
+
+    #[test]
+    fn percentile_linear_interpolation() {
+        let v = [1.0, 2.0, 3.0, 4.0, 10.0];
+        assert_eq!(percentile(&v, 0.0), Some(1.0));
+        assert_eq!(percentile(&v, 100.0), Some(10.0));
+        assert_eq!(percentile(&v, 50.0), Some(3.0));
+        // h = 4·0.05 = 0.2 -> 1 + 0.2·1
+        assert!(close(percentile(&v, 5.0).unwrap(), 1.2, 1e-12));
+        // h = 4·0.95 = 3.8 -> 4 + 0.8·6
+        assert!(close(percentile(&v, 95.0).unwrap(), 8.8, 1e-12));
+        assert_eq!(percentile(&[1.0, 2.0], 50.0), Some(1.5));
+        assert_eq!(percentile(&[7.0], 95.0), Some(7.0));
+        assert_eq!(percentile(&[], 50.0), None);
+    }
+
+    #[test]
+    fn depth_stats_by_hand() {
+        let z = Image::from_vec(3, 3, vec![4.0, f32::NAN, 1.0, 2.0, 0.0, 10.0, -1.0, 3.0, f32::INFINITY])
+            .unwrap();
+        let s = DepthStats::from_depth(&z);
+        assert_eq!((s.width, s.height, s.valid_pixels, s.total_pixels), (3, 3, 5, 9));
+        assert!(close(s.density_percent, 500.0 / 9.0, 1e-12));
+        assert_eq!(s.min, Some(1.0));
+        assert_eq!(s.max, Some(10.0));
+        assert_eq!(s.mean, Some(4.0));
+        assert_eq!(s.median, Some(3.0));
+        assert!(close(s.p5.unwrap(), 1.2, 1e-12));
+        assert!(close(s.p95.unwrap(), 8.8, 1e-12));
+
+        let json = serde_json::to_value(&s).unwrap();
+        assert_eq!(json["valid_pixels"], 5);
+        assert_eq!(json["median"], 3.0);
+
+        let none = DepthStats::from_depth(&Image::new(2, 2, f32::NAN));
+        assert_eq!((none.valid_pixels, none.density_percent), (0, 0.0));
+        assert_eq!(
+            (none.min, none.max, none.mean, none.median, none.p5, none.p95),
+            (None, None, None, None, None, None)
+        );
+        assert!(serde_json::to_value(&none).unwrap()["median"].is_null());
+        let empty = DepthStats::from_depth(&Image::new(0, 0, 1.0));
+        assert_eq!((empty.total_pixels, empty.density_percent), (0, 0.0));
+    }
+
+    #[test]
+    fn disparity_stats_by_hand() {
+        let d = DisparityMap::from_vec(2, 3, vec![-2.0, f32::NAN, 0.0, 6.0, 2.0, f32::NEG_INFINITY]).unwrap();
+        let s = DisparityStats::from_disparity(&d);
+        assert_eq!((s.valid_pixels, s.total_pixels), (4, 6));
+        assert!(close(s.density_percent, 400.0 / 6.0, 1e-12));
+        assert_eq!((s.min, s.max), (Some(-2.0), Some(6.0)));
+        assert_eq!(s.mean, Some(1.5));
+        // sorted -2, 0, 2, 6: h = 1.5 -> 1.0
+        assert_eq!(s.median, Some(1.0));
+        // h = 0.15 -> -2 + 0.15·2 = -1.7; h = 2.85 -> 2 + 0.85·4 = 5.4
+        assert!(close(s.p5.unwrap(), -1.7, 1e-12));
+        assert!(close(s.p95.unwrap(), 5.4, 1e-12));
+    }
+
+    #[test]
+    fn rig_serializes() {
+        let rig = Rig::from_datasheet(80.0, 12.0, 4.0).unwrap();
+        let json = serde_json::to_value(&rig).unwrap();
+        assert_eq!(json["focal_px"], 3000.0);
+        assert!(json["principal_point"].is_null());
+    }
 }
