@@ -9,13 +9,36 @@
 
 use std::sync::Mutex;
 
-use crate::PathCount;
+use crate::{GrayImage, PathCount};
 
 /// Penalties of the smoothness term, in cost units.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Penalties {
     pub p1: u16,
     pub p2: u16,
+}
+
+/// P2 for each intensity step along a path (8-bit grey levels, 0..=255): disparity jumps are
+/// cheaper across image edges, where depth discontinuities usually are.
+/// `P2(ΔI) = max(P1 + 1, P2 · s / (s + ΔI))` for edge scale `s`; `s = 0` keeps P2 constant.
+pub(crate) struct P2Table([u16; 256]);
+
+impl P2Table {
+    pub(crate) fn new(p1: u16, p2: u16, edge_scale: u16) -> Self {
+        let mut t = [p2; 256];
+        if edge_scale > 0 {
+            for (step, v) in t.iter_mut().enumerate() {
+                let s = u32::from(edge_scale);
+                *v = ((u32::from(p2) * s / (s + step as u32)) as u16).max(p1 + 1);
+            }
+        }
+        P2Table(t)
+    }
+
+    #[inline]
+    fn penalties(&self, p1: u16, a: u16, b: u16) -> Penalties {
+        Penalties { p1, p2: self.0[usize::from(a.abs_diff(b) / 257)] }
+    }
 }
 
 /// Padding on both ends of each pixel's path-cost vector so the `d±1` neighbours need no
@@ -75,35 +98,37 @@ enum Pass {
 /// Adds the aggregated path costs of all directions into `sum` (`[y][x][d]`, zeroed by the
 /// caller). `cost` has the same layout.
 pub(crate) fn aggregate_paths(
+    image: &GrayImage,
     cost: &[u8],
-    width: usize,
-    height: usize,
     nd: usize,
     paths: PathCount,
-    pen: Penalties,
+    p1: u16,
+    p2: &P2Table,
     sum: &mut [u16],
 ) {
+    let (width, height) = image.size();
     debug_assert_eq!(cost.len(), width * height * nd);
     debug_assert_eq!(sum.len(), cost.len());
     let rows: Vec<Mutex<&mut [u16]>> = sum.chunks_mut(width * nd).map(Mutex::new).collect();
     let diagonals = paths == PathCount::Eight;
     rayon::join(
-        || aggregate_pass(cost, width, height, nd, diagonals, pen, Pass::Forward, &rows),
-        || aggregate_pass(cost, width, height, nd, diagonals, pen, Pass::Backward, &rows),
+        || aggregate_pass(image, cost, nd, diagonals, p1, p2, Pass::Forward, &rows),
+        || aggregate_pass(image, cost, nd, diagonals, p1, p2, Pass::Backward, &rows),
     );
 }
 
 #[allow(clippy::too_many_arguments)]
 fn aggregate_pass(
+    image: &GrayImage,
     cost: &[u8],
-    width: usize,
-    height: usize,
     nd: usize,
     diagonals: bool,
-    pen: Penalties,
+    p1: u16,
+    p2: &P2Table,
     pass: Pass,
     rows: &[Mutex<&mut [u16]>],
 ) {
+    let (width, height) = image.size();
     let stride = nd + 2;
     // Previous and current row of the vertical and the two diagonal paths.
     let mut vertical = [RowPaths::new(width, nd), RowPaths::new(width, nd)];
@@ -130,15 +155,24 @@ fn aggregate_pass(
         let [a_prev, a_cur] = &mut diag_a;
         let [b_prev, b_cur] = &mut diag_b;
         let mut h_min = 0u16;
+        let row = image.row(y);
+        // The previous row of this pass (unused on its first row).
+        let prev_row = image.row(if first_row { y } else { ys[row_index - 1] });
         for (col_index, &x) in xs.iter().enumerate() {
             let c = &cost[(y * width + x) * nd..][..nd];
+            let here = row[x];
 
             // Horizontal path, from the previous pixel of this row.
             let [h_prev, h_cur] = &mut horizontal;
-            h_min = if col_index == 0 { path_start(c, h_cur) } else { path_step(c, h_prev, h_min, pen, h_cur) };
+            h_min = if col_index == 0 {
+                path_start(c, h_cur)
+            } else {
+                let pen = p2.penalties(p1, here, row[xs[col_index - 1]]);
+                path_step(c, h_prev, h_min, pen, h_cur)
+            };
             // Vertical path, from the same column of the previous row.
             let from_row = (!first_row).then_some(x);
-            row_step(c, v_prev, v_cur, x, from_row, stride, pen);
+            row_step(c, v_prev, v_cur, x, from_row, stride, p2.penalties(p1, here, prev_row[x]));
 
             let out = &mut row_sum[x * nd..(x + 1) * nd];
             let v = &v_cur.costs[x * stride + 1..][..nd];
@@ -151,8 +185,11 @@ fn aggregate_pass(
                     let from = x as isize + offset;
                     (!first_row && from >= 0 && (from as usize) < width).then_some(from as usize)
                 };
-                row_step(c, a_prev, a_cur, x, neighbour(-step), stride, pen);
-                row_step(c, b_prev, b_cur, x, neighbour(step), stride, pen);
+                let (a_from, b_from) = (neighbour(-step), neighbour(step));
+                let pen_a = p2.penalties(p1, here, a_from.map_or(here, |f| prev_row[f]));
+                let pen_b = p2.penalties(p1, here, b_from.map_or(here, |f| prev_row[f]));
+                row_step(c, a_prev, a_cur, x, a_from, stride, pen_a);
+                row_step(c, b_prev, b_cur, x, b_from, stride, pen_b);
                 let (a, b) = (&a_cur.costs[x * stride + 1..][..nd], &b_cur.costs[x * stride + 1..][..nd]);
                 for ((o, &av), &bv) in out.iter_mut().zip(a).zip(b) {
                     *o += av + bv;

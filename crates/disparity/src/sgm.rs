@@ -1,8 +1,9 @@
 //! Semi-Global Matching: census cost volume, path aggregation, winner-takes-all, checks.
 
-use crate::aggregate::{aggregate_paths, Penalties, MAX_P2};
+use crate::aggregate::{aggregate_paths, P2Table, MAX_P2};
 use crate::census::census_transform;
 use crate::cost::hamming_cost_volume;
+use crate::filter::median_3x3;
 use crate::wta::{select_disparities, Selection};
 use crate::{check_pair, DisparityMap, Error, GrayImage, Image, SgmParams};
 
@@ -52,8 +53,8 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
     drop((census_left, census_right));
 
     let mut sum = vec![0u16; width * height * nd];
-    let pen = Penalties { p1: params.p1, p2: params.p2 };
-    aggregate_paths(&cost, width, height, nd, params.paths, pen, &mut sum);
+    let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
+    aggregate_paths(left, &cost, nd, params.paths, params.p1, &p2, &mut sum);
     drop(cost);
 
     let mut disparity = DisparityMap::new(width, height, f32::NAN);
@@ -64,6 +65,9 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
         subpixel: params.subpixel,
     };
     select_disparities(&sum, width, nd, selection, &mut disparity);
+    if params.median {
+        disparity = median_3x3(&disparity);
+    }
     Ok(disparity)
 }
 
