@@ -1,1 +1,84 @@
-fn main() {}
+//! `stereo-depth`: metric depth from a rectified stereo pair.
+//!
+//! `main` only maps the outcome of [`run`] to an exit status: 0 success, 1 runtime errors (files
+//! missing, unreadable, mismatched, unwritable), 2 usage errors (clap's and our own argument
+//! checks). A closed stdout (`stereo-depth ... | head`) ends the program normally.
+
+mod args;
+mod config;
+mod eval_cmd;
+mod pair;
+mod report;
+
+use std::io::{self, Write};
+use std::process::ExitCode;
+
+use anyhow::Context;
+
+use crate::args::{Cli, Command};
+use crate::config::{EvalConfig, PairConfig, UsageError};
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(code) => code,
+        Err(err) if is_broken_pipe(&err) => ExitCode::SUCCESS,
+        Err(err) => {
+            let message = one_line(&err);
+            let _ = writeln!(io::stderr().lock(), "stereo-depth: error: {message}");
+            let usage = err.chain().any(|cause| cause.is::<UsageError>());
+            ExitCode::from(if usage { 2 } else { 1 })
+        }
+    }
+}
+
+fn run() -> anyhow::Result<ExitCode> {
+    let cli = match Cli::try_parse_with_defaults() {
+        Ok(cli) => cli,
+        Err(err) => {
+            // --help and --version end up here too, with exit status 0.
+            err.print().context("cannot print the usage message")?;
+            return Ok(ExitCode::from(err.exit_code().clamp(0, 255) as u8));
+        }
+    };
+    let mut stdout = io::stdout().lock();
+    match cli.command {
+        Some(Command::Eval(args)) => {
+            let config = EvalConfig::from_args(args)?;
+            eval_cmd::run(&config, &mut stdout)?;
+        }
+        None => {
+            let threads = cli.pair.threads;
+            let config = PairConfig::from_args(cli.pair)?;
+            if let Some(threads) = threads {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads.into())
+                    .build_global()
+                    .context("cannot start the worker threads")?;
+            }
+            pair::run(&config, &mut stdout)?;
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn is_broken_pipe(err: &anyhow::Error) -> bool {
+    err.chain()
+        .any(|cause| cause.downcast_ref::<io::Error>().is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe))
+}
+
+/// The error chain as one line. Library errors already name their file and often repeat their
+/// source's message, so a cause whose text is already there is left out.
+fn one_line(err: &anyhow::Error) -> String {
+    let mut message = String::new();
+    for cause in err.chain() {
+        let text = cause.to_string();
+        if message.contains(&text) {
+            continue;
+        }
+        if !message.is_empty() {
+            message.push_str(": ");
+        }
+        message.push_str(&text);
+    }
+    message.replace(['\r', '\n'], " ")
+}
