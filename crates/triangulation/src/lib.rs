@@ -38,6 +38,8 @@ use nalgebra::Point3;
 use rayon::prelude::*;
 use stereo_disparity::{DisparityMap, Image};
 
+pub mod design;
+
 /// Invalid rig parameters.
 ///
 /// Displays as e.g. `invalid baseline: -80 mm (must be a finite number > 0 mm)`.
