@@ -244,51 +244,12 @@ pub fn percentile(sorted: &[f64], p: f64) -> Option<f64> {
     Some(sorted[lo] + frac * (sorted[hi] - sorted[lo]))
 }
 
-/// Summary of the valid samples of a map.
-struct Summary {
-    width: usize,
-    height: usize,
-    valid_pixels: usize,
-    total_pixels: usize,
-    density_percent: f64,
-    min: Option<f64>,
-    max: Option<f64>,
-    mean: Option<f64>,
-    median: Option<f64>,
-    p5: Option<f64>,
-    p95: Option<f64>,
-}
-
-fn summarize(image: &Image<f32>, valid: impl Fn(f32) -> bool) -> Summary {
-    let (width, height) = image.size();
-    let mut values: Vec<f64> =
-        image.as_slice().iter().copied().filter(|&v| valid(v)).map(f64::from).collect();
-    values.sort_unstable_by(f64::total_cmp);
-    let total_pixels = width * height;
-    let valid_pixels = values.len();
-    let density_percent =
-        if total_pixels == 0 { 0.0 } else { 100.0 * valid_pixels as f64 / total_pixels as f64 };
-    let mean = (valid_pixels > 0).then(|| values.iter().sum::<f64>() / valid_pixels as f64);
-    Summary {
-        width,
-        height,
-        valid_pixels,
-        total_pixels,
-        density_percent,
-        min: values.first().copied(),
-        max: values.last().copied(),
-        mean,
-        median: percentile(&values, 50.0),
-        p5: percentile(&values, 5.0),
-        p95: percentile(&values, 95.0),
-    }
-}
-
-/// Statistics of a depth map. Valid pixels are finite and > 0; depths are in metres and
-/// `None` when there is no valid pixel. Percentiles (and the median) interpolate linearly
+/// Statistics of the valid samples of a map: a depth map ([`DepthStats`], metres, valid = finite
+/// and > 0) or a disparity map ([`DisparityStats`], pixels, valid = finite, negative included).
+/// Values are `None` when no pixel is valid. Percentiles (and the median) interpolate linearly
 /// between closest ranks, see [`percentile`].
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct DepthStats {
+pub struct MapStats {
     pub width: usize,
     pub height: usize,
     pub valid_pixels: usize,
@@ -303,61 +264,45 @@ pub struct DepthStats {
     pub p95: Option<f64>,
 }
 
-impl DepthStats {
+/// Statistics of a depth map (metres).
+pub type DepthStats = MapStats;
+
+/// Statistics of a disparity map (pixels).
+pub type DisparityStats = MapStats;
+
+impl MapStats {
     /// Statistics of `depth` (metres, NaN / non-positive = invalid).
     pub fn from_depth(depth: &Image<f32>) -> Self {
-        let s = summarize(depth, |v| v.is_finite() && v > 0.0);
-        DepthStats {
-            width: s.width,
-            height: s.height,
-            valid_pixels: s.valid_pixels,
-            total_pixels: s.total_pixels,
-            density_percent: s.density_percent,
-            min: s.min,
-            max: s.max,
-            mean: s.mean,
-            median: s.median,
-            p5: s.p5,
-            p95: s.p95,
-        }
+        Self::of_valid(depth, |v| v.is_finite() && v > 0.0)
     }
-}
 
-/// Statistics of a disparity map. Valid pixels are finite (negative disparities count);
-/// values are in pixels and `None` when there is no valid pixel. Percentiles as in
-/// [`DepthStats`].
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct DisparityStats {
-    pub width: usize,
-    pub height: usize,
-    pub valid_pixels: usize,
-    pub total_pixels: usize,
-    /// `100 · valid_pixels / total_pixels` (0 for an empty map).
-    pub density_percent: f64,
-    pub min: Option<f64>,
-    pub max: Option<f64>,
-    pub mean: Option<f64>,
-    pub median: Option<f64>,
-    pub p5: Option<f64>,
-    pub p95: Option<f64>,
-}
-
-impl DisparityStats {
     /// Statistics of `disparity` (pixels, NaN / infinite = invalid).
     pub fn from_disparity(disparity: &DisparityMap) -> Self {
-        let s = summarize(disparity, f32::is_finite);
-        DisparityStats {
-            width: s.width,
-            height: s.height,
-            valid_pixels: s.valid_pixels,
-            total_pixels: s.total_pixels,
-            density_percent: s.density_percent,
-            min: s.min,
-            max: s.max,
-            mean: s.mean,
-            median: s.median,
-            p5: s.p5,
-            p95: s.p95,
+        Self::of_valid(disparity, f32::is_finite)
+    }
+
+    fn of_valid(image: &Image<f32>, valid: impl Fn(f32) -> bool) -> Self {
+        let (width, height) = image.size();
+        let mut values: Vec<f64> =
+            image.as_slice().iter().copied().filter(|&v| valid(v)).map(f64::from).collect();
+        values.sort_unstable_by(f64::total_cmp);
+        let total_pixels = width * height;
+        let valid_pixels = values.len();
+        let density_percent =
+            if total_pixels == 0 { 0.0 } else { 100.0 * valid_pixels as f64 / total_pixels as f64 };
+        let mean = (valid_pixels > 0).then(|| values.iter().sum::<f64>() / valid_pixels as f64);
+        MapStats {
+            width,
+            height,
+            valid_pixels,
+            total_pixels,
+            density_percent,
+            min: values.first().copied(),
+            max: values.last().copied(),
+            mean,
+            median: percentile(&values, 50.0),
+            p5: percentile(&values, 5.0),
+            p95: percentile(&values, 95.0),
         }
     }
 }
