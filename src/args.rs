@@ -43,9 +43,29 @@ impl Cli {
     /// Parses the process arguments. The help shows the matchers' defaults as the library
     /// defines them, so they are never restated here.
     pub fn try_parse_with_defaults() -> Result<Cli, clap::Error> {
-        let mut command = with_library_defaults(Cli::command());
-        let matches = command.try_get_matches_from_mut(std::env::args_os())?;
+        Cli::try_parse_from_with_defaults(std::env::args_os())
+    }
+
+    /// [`Cli::try_parse_with_defaults`] on the given arguments (the first is the program name).
+    pub fn try_parse_from_with_defaults<I, T>(args: I) -> Result<Cli, clap::Error>
+    where
+        I: IntoIterator<Item = T>,
+        T: Into<std::ffi::OsString> + Clone,
+    {
+        let mut command = Cli::command_with_defaults();
+        let matches = command.try_get_matches_from_mut(args)?;
         Cli::from_arg_matches(&matches).map_err(|err| err.format(&mut command))
+    }
+
+    /// The clap command with the library defaults in the help of the pair and batch commands.
+    /// The rig flags are required by the pair command; in batch they may come from a
+    /// Middlebury `calib.txt` instead, which `config` checks per pair.
+    pub fn command_with_defaults() -> clap::Command {
+        with_library_defaults(Cli::command()).mut_subcommand("batch", |batch| {
+            ["baseline", "focal", "pixel"]
+                .into_iter()
+                .fold(with_library_defaults(batch), |c, id| c.mut_arg(id, |arg| arg.required(false)))
+        })
     }
 }
 
@@ -94,6 +114,12 @@ fn with_library_defaults(command: clap::Command) -> clap::Command {
 pub enum Command {
     /// Score a disparity map against ground truth (Middlebury-style bad-pixel rates).
     Eval(EvalArgs),
+    /// Process every stereo pair found in a folder (see `batch --help` for the layouts).
+    Batch(Box<BatchArgs>),
+    /// Join the per-shard summaries of `batch --shard K/N` runs into summary.json and summary.csv.
+    BatchMerge(BatchMergeArgs),
+    /// Rig design calculator: distance, disparity in mm, depth resolution, field of view, table, chart.
+    Calc(crate::calc::CalcArgs),
 }
 
 /// The pair command: match LEFT against RIGHT and write the depth map.
@@ -107,6 +133,40 @@ pub struct PairArgs {
     #[arg(value_name = "RIGHT", required = true)]
     pub right: Option<PathBuf>,
 
+    #[command(flatten)]
+    pub rig: RigArgs,
+
+    #[command(flatten)]
+    pub matching: MatchArgs,
+
+    /// Depth map to write (OpenEXR, channel Z in metres) [default: LEFTSTEM_depth.exr in the
+    /// current directory].
+    #[arg(short, long, value_name = "PATH.exr", help_heading = "Output")]
+    pub output: Option<PathBuf>,
+
+    /// Also write the disparity map of the left view (Middlebury PFM; invalid pixels are NaN).
+    #[arg(long, value_name = "PATH.pfm", help_heading = "Output")]
+    pub disparity: Option<PathBuf>,
+
+    /// Also write statistics as JSON: width, height, valid_pixels, density_percent, depth_m and
+    /// disparity_px (min, max, mean, median, p5, p95), matcher (name and parameters), rig
+    /// (baseline_mm, focal_mm, pixel_um, focal_px, doffs, principal_point), timings_ms (load,
+    /// match, triangulate, write, total) and mde_per_s (W·H·ndisp per second of matching / 1e6).
+    #[arg(long, value_name = "PATH.json", help_heading = "Output")]
+    pub stats: Option<PathBuf>,
+
+    /// Print only the paths written, not the summary.
+    #[arg(short, long, help_heading = "Output")]
+    pub quiet: bool,
+
+    /// Worker threads [default: one per core].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
+}
+
+/// The rig flags, shared by the pair and batch commands.
+#[derive(Debug, Args)]
+pub struct RigArgs {
     /// Distance between the two optical centres, in millimetres.
     #[arg(long, value_name = "MM", required = true, allow_negative_numbers = true, help_heading = "Rig")]
     pub baseline: Option<f64>,
@@ -119,15 +179,10 @@ pub struct PairArgs {
     #[arg(long, value_name = "UM", required = true, allow_negative_numbers = true, help_heading = "Rig")]
     pub pixel: Option<f64>,
 
-    /// Disparity offset between the two principal points (Middlebury's `doffs`), pixels.
-    #[arg(
-        long,
-        value_name = "PX",
-        default_value_t = 0.0,
-        allow_negative_numbers = true,
-        help_heading = "Rig"
-    )]
-    pub doffs: f64,
+    /// Disparity offset between the two principal points (Middlebury's `doffs`), pixels
+    /// [default: 0].
+    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Rig")]
+    pub doffs: Option<f64>,
 
     /// Principal point column, pixels [default: image centre]. Needs --cy.
     #[arg(long, value_name = "PX", requires = "cy", allow_negative_numbers = true, help_heading = "Rig")]
@@ -136,7 +191,11 @@ pub struct PairArgs {
     /// Principal point row, pixels [default: image centre]. Needs --cx.
     #[arg(long, value_name = "PX", requires = "cx", allow_negative_numbers = true, help_heading = "Rig")]
     pub cy: Option<f64>,
+}
 
+/// The matcher flags, shared by the pair and batch commands.
+#[derive(Debug, Args)]
+pub struct MatchArgs {
     /// Smallest disparity searched (pixels).
     #[arg(
         long,
@@ -193,30 +252,6 @@ pub struct PairArgs {
     /// BM: window cost.
     #[arg(long, value_enum, help_heading = "Matching")]
     pub bm_cost: Option<BmCostArg>,
-
-    /// Depth map to write (OpenEXR, channel Z in metres) [default: LEFTSTEM_depth.exr in the
-    /// current directory].
-    #[arg(short, long, value_name = "PATH.exr", help_heading = "Output")]
-    pub output: Option<PathBuf>,
-
-    /// Also write the disparity map of the left view (Middlebury PFM; invalid pixels are NaN).
-    #[arg(long, value_name = "PATH.pfm", help_heading = "Output")]
-    pub disparity: Option<PathBuf>,
-
-    /// Also write statistics as JSON: width, height, valid_pixels, density_percent, depth_m and
-    /// disparity_px (min, max, mean, median, p5, p95), matcher (name and parameters), rig
-    /// (baseline_mm, focal_mm, pixel_um, focal_px, doffs, principal_point), timings_ms (load,
-    /// match, triangulate, write, total) and mde_per_s (W·H·ndisp per second of matching / 1e6).
-    #[arg(long, value_name = "PATH.json", help_heading = "Output")]
-    pub stats: Option<PathBuf>,
-
-    /// Print only the paths written, not the summary.
-    #[arg(short, long, help_heading = "Output")]
-    pub quiet: bool,
-
-    /// Worker threads [default: one per core].
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
-    pub threads: Option<u16>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -273,4 +308,103 @@ pub struct EvalArgs {
     /// Print the metrics as JSON instead of a table.
     #[arg(long)]
     pub json: bool,
+}
+
+const BATCH_AFTER_HELP: &str = "\
+Pairs are found by walking INPUT_DIR (hidden files and OUT_DIR are skipped; images are .png, .pgm, \
+.ppm, .pnm, .jpg, .jpeg) in these layouts, all at once and at any depth:
+  DIR/left/NAME    + DIR/right/NAME        -> OUT_DIR/DIR/STEM.*   (also image_0/image_1)
+  DIR/image_2/NAME + DIR/image_3/NAME      -> OUT_DIR/DIR/STEM.*   (KITTI, e.g. 000000_10.png)
+  DIR/NAME_left.EXT + DIR/NAME_right.EXT   -> OUT_DIR/DIR/NAME.*   (also _L/_R)
+  SCENE/im0.EXT    + SCENE/im1.EXT         -> OUT_DIR/SCENE/im0.*  (Middlebury)
+A Middlebury SCENE/calib.txt gives the focal length (px), baseline, doffs and principal point, and \
+ndisp as --max-disparity; rig flags given on the command line take precedence. Other pairs need \
+--baseline, --focal and --pixel. --pattern 'LEFT:RIGHT' replaces the layouts: each side is a file \
+name (matched in every folder) or a path from INPUT_DIR (when it has a '/') with one {name}, e.g. \
+--pattern '{name}_a.png:{name}_b.png' -> OUT_DIR/DIR/{name}.*. Images that pair with nothing are \
+reported on stderr and in --list.
+
+Outputs per pair: STEM.depth.exr, with --disparity STEM.disparity.pfm, with --stats STEM.stats.json; \
+and OUT_DIR/summary.json and summary.csv (one row per pair: status ok/skipped/failed, error, \
+density, median depth, timings). A pair whose requested outputs all exist is skipped unless \
+--overwrite; outputs are written atomically, so an interrupted run resumes where it stopped.
+
+--shard K/N processes the pairs whose index in the sorted list is K modulo N (K in 0..N) and writes \
+summary.shard-K-of-N.json/.csv; `stereo-depth batch-merge OUT_DIR` joins them.
+
+Exit status: 0 when every pair succeeded (or was skipped), 1 when any failed or on a runtime error, \
+2 for invalid arguments.
+
+Examples:
+  stereo-depth batch drive/ --out depth/ --baseline 80 --focal 12 --pixel 4 --stats
+  stereo-depth batch middlebury/ --out depth/ --list
+  stereo-depth batch drive/ --out depth/ --baseline 80 --focal 12 --pixel 4 \\
+      --shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT
+  stereo-depth batch-merge depth/";
+
+/// `stereo-depth batch INPUT_DIR --out OUT_DIR`.
+#[derive(Debug, Args)]
+#[command(after_help = BATCH_AFTER_HELP)]
+pub struct BatchArgs {
+    /// Folder searched (recursively) for stereo pairs.
+    #[arg(value_name = "INPUT_DIR")]
+    pub input: PathBuf,
+
+    /// Folder the outputs are written to, mirroring the layout of INPUT_DIR (created if needed).
+    #[arg(short, long, value_name = "OUT_DIR")]
+    pub out: PathBuf,
+
+    #[command(flatten)]
+    pub rig: RigArgs,
+
+    #[command(flatten)]
+    pub matching: MatchArgs,
+
+    /// Also write each pair's disparity map as STEM.disparity.pfm.
+    #[arg(long, help_heading = "Output")]
+    pub disparity: bool,
+
+    /// Also write each pair's statistics as STEM.stats.json (the pair command's --stats).
+    #[arg(long, help_heading = "Output")]
+    pub stats: bool,
+
+    /// Redo pairs whose outputs already exist (default: skip them).
+    #[arg(long, help_heading = "Output")]
+    pub overwrite: bool,
+
+    /// No progress bar or per-pair lines; only warnings and the failure count on stderr.
+    #[arg(short, long, help_heading = "Output")]
+    pub quiet: bool,
+
+    /// Pair files by 'LEFT:RIGHT' templates with one {name} each instead of the known layouts,
+    /// e.g. '{name}_a.png:{name}_b.png'.
+    #[arg(long, value_name = "LEFT:RIGHT", help_heading = "Pairs")]
+    pub pattern: Option<String>,
+
+    /// Dry run: print the pairs found, what would be written or skipped, and the unpaired
+    /// images; write nothing.
+    #[arg(long, help_heading = "Pairs")]
+    pub list: bool,
+
+    /// Process only the K-th of N slices of the sorted pair list (pairs whose index is K mod N),
+    /// e.g. --shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT.
+    #[arg(long, value_name = "K/N", help_heading = "Pairs")]
+    pub shard: Option<String>,
+
+    /// Pairs processed at the same time (each holds its images and cost volume in memory)
+    /// [default: 2, at most the number of cores].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub jobs: Option<u16>,
+
+    /// Matcher worker threads, shared by the pairs in flight [default: one per core].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
+}
+
+/// `stereo-depth batch-merge OUT_DIR`.
+#[derive(Debug, Args)]
+pub struct BatchMergeArgs {
+    /// The OUT_DIR of the `batch --shard K/N` runs, holding summary.shard-K-of-N.json files.
+    #[arg(value_name = "OUT_DIR")]
+    pub out: PathBuf,
 }

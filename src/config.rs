@@ -7,7 +7,11 @@ use std::path::{Path, PathBuf};
 use stereo_disparity::{BmCost, BmParams, DisparityRange, PathCount, SgmParams, Subpixel};
 use stereo_triangulation::Rig;
 
-use crate::args::{BmCostArg, EvalArgs, MatcherArg, PairArgs, PathsArg, SubpixelArg};
+use crate::args::{
+    BatchArgs, BatchMergeArgs, BmCostArg, EvalArgs, MatchArgs, MatcherArg, PairArgs, PathsArg, RigArgs,
+    SubpixelArg,
+};
+use crate::discover::{Calib, Pattern, Shard};
 
 /// An invalid argument: reported like clap's own errors, with exit status 2.
 #[derive(Debug)]
@@ -27,12 +31,109 @@ macro_rules! usage {
     };
 }
 
-/// The rig as the user gave it (datasheet units), kept for the report.
+/// The rig as the user gave it (datasheet units), kept for the report. The focal length and
+/// pixel pitch are `None` when the focal length came in pixels from a Middlebury `calib.txt`.
 #[derive(Clone, Debug)]
 pub struct RigInput {
     pub baseline_mm: f64,
-    pub focal_mm: f64,
-    pub pixel_um: f64,
+    pub focal_mm: Option<f64>,
+    pub pixel_um: Option<f64>,
+}
+
+/// The rig flags, each checked on its own; [`RigFlags::resolve`] completes them from a
+/// Middlebury `calib.txt` (the flags take precedence) and builds the [`Rig`].
+#[derive(Clone, Debug, Default)]
+pub struct RigFlags {
+    pub baseline_mm: Option<f64>,
+    pub focal_mm: Option<f64>,
+    pub pixel_um: Option<f64>,
+    pub doffs: Option<f64>,
+    pub principal_point: Option<(f64, f64)>,
+}
+
+impl RigFlags {
+    pub fn from_args(args: &RigArgs) -> Result<Self, UsageError> {
+        let principal_point = match (args.cx, args.cy) {
+            (Some(cx), Some(cy)) => Some((cx, cy)),
+            (None, None) => None,
+            _ => return Err(usage!("--cx and --cy must be given together")),
+        };
+        let flags = RigFlags {
+            baseline_mm: args.baseline,
+            focal_mm: args.focal,
+            pixel_um: args.pixel,
+            doffs: args.doffs,
+            principal_point,
+        };
+        // Every value given is checked now, with stand-ins for the others.
+        let rig = Rig::from_datasheet(
+            flags.baseline_mm.unwrap_or(1.0),
+            flags.focal_mm.unwrap_or(1.0),
+            flags.pixel_um.unwrap_or(1.0),
+        )
+        .and_then(|rig| rig.with_doffs(flags.doffs.unwrap_or(0.0)))
+        .map_err(rig_error)?;
+        if let Some((cx, cy)) = principal_point {
+            rig.with_principal_point(cx, cy).map_err(rig_error)?;
+        }
+        Ok(flags)
+    }
+
+    /// Whether the flags alone define the rig (no calib.txt needed).
+    pub fn is_complete(&self) -> bool {
+        self.baseline_mm.is_some() && self.focal_mm.is_some() && self.pixel_um.is_some()
+    }
+
+    /// The rig from the flags, with whatever they leave open taken from `calib`.
+    pub fn resolve(&self, calib: Option<&Calib>) -> Result<(Rig, RigInput), UsageError> {
+        let from_calib = " (nor does a calib.txt give it)";
+        let baseline_mm = self.baseline_mm.or(calib.and_then(|c| c.baseline_mm)).ok_or_else(|| {
+            usage!("no baseline: give --baseline{}", if calib.is_some() { from_calib } else { "" })
+        })?;
+        let (rig, focal_mm, pixel_um) = match (self.focal_mm, self.pixel_um, calib) {
+            (Some(focal), Some(pixel), _) => {
+                (Rig::from_datasheet(baseline_mm, focal, pixel).map_err(rig_error)?, Some(focal), Some(pixel))
+            }
+            (None, None, Some(calib)) => {
+                let rig = Rig::from_focal_px(baseline_mm, calib.focal_px)
+                    .map_err(|err| usage!("calib.txt: {err}"))?;
+                (rig, None, None)
+            }
+            _ => return Err(usage!("no focal length: give --focal and --pixel")),
+        };
+        let doffs = self.doffs.or(calib.and_then(|c| c.doffs)).unwrap_or(0.0);
+        let mut rig = rig.with_doffs(doffs).map_err(rig_error)?;
+        if let Some((cx, cy)) = self.principal_point.or(calib.map(|c| (c.cx, c.cy))) {
+            rig = rig.with_principal_point(cx, cy).map_err(rig_error)?;
+        }
+        Ok((rig, RigInput { baseline_mm, focal_mm, pixel_um }))
+    }
+}
+
+/// The matcher flags, checked: the matcher and the disparity search bounds.
+#[derive(Clone, Debug)]
+pub struct MatchSettings {
+    pub min_disparity: i32,
+    /// `None`: [`DisparityRange::default_for_width`].
+    pub max_disparity: Option<i32>,
+    /// The range is filled in once the width is known.
+    pub matcher: Matcher,
+}
+
+impl MatchSettings {
+    pub fn from_args(args: &MatchArgs) -> Result<Self, UsageError> {
+        let matcher = matcher(args)?;
+        if let Some(max) = args.max_disparity {
+            if max <= args.min_disparity {
+                return Err(usage!(
+                    "empty disparity range: --min-disparity {} must be below --max-disparity {max} \
+                     (the search is min <= d < max)",
+                    args.min_disparity
+                ));
+            }
+        }
+        Ok(MatchSettings { min_disparity: args.min_disparity, max_disparity: args.max_disparity, matcher })
+    }
 }
 
 /// Which matcher runs, with every parameter except the disparity range resolved.
@@ -74,37 +175,24 @@ pub struct PairConfig {
     pub disparity: Option<PathBuf>,
     pub stats: Option<PathBuf>,
     pub quiet: bool,
+    /// The image size the rig was calibrated for (a Middlebury calib.txt's width and height),
+    /// checked against the images before matching.
+    pub expected_size: Option<(usize, usize)>,
 }
 
 impl PairConfig {
     pub fn from_args(args: PairArgs) -> Result<Self, UsageError> {
-        let matcher = matcher(&args)?;
+        let matcher = matcher(&args.matching)?;
         // clap enforces these for the pair command; a missing one here is a programming error
         // in `args`, reported rather than unwrapped.
         let required = |name: &str| usage!("the pair command needs {name}");
         let left = args.left.ok_or_else(|| required("LEFT"))?;
         let right = args.right.ok_or_else(|| required("RIGHT"))?;
-        let baseline_mm = args.baseline.ok_or_else(|| required("--baseline"))?;
-        let focal_mm = args.focal.ok_or_else(|| required("--focal"))?;
-        let pixel_um = args.pixel.ok_or_else(|| required("--pixel"))?;
-        let mut rig = Rig::from_datasheet(baseline_mm, focal_mm, pixel_um)
-            .and_then(|rig| rig.with_doffs(args.doffs))
-            .map_err(rig_error)?;
-        match (args.cx, args.cy) {
-            (Some(cx), Some(cy)) => rig = rig.with_principal_point(cx, cy).map_err(rig_error)?,
-            (None, None) => {}
-            _ => return Err(usage!("--cx and --cy must be given together")),
-        }
-
-        if let Some(max) = args.max_disparity {
-            if max <= args.min_disparity {
-                return Err(usage!(
-                    "empty disparity range: --min-disparity {} must be below --max-disparity {max} \
-                     (the search is min <= d < max)",
-                    args.min_disparity
-                ));
-            }
-        }
+        args.rig.baseline.ok_or_else(|| required("--baseline"))?;
+        args.rig.focal.ok_or_else(|| required("--focal"))?;
+        args.rig.pixel.ok_or_else(|| required("--pixel"))?;
+        let (rig, rig_input) = RigFlags::from_args(&args.rig)?.resolve(None)?;
+        let settings = MatchSettings::from_args(&args.matching)?;
 
         let output = match args.output {
             Some(path) => path,
@@ -113,15 +201,16 @@ impl PairConfig {
         let config = PairConfig {
             left,
             right,
-            rig_input: RigInput { baseline_mm, focal_mm, pixel_um },
+            rig_input,
             rig,
-            min_disparity: args.min_disparity,
-            max_disparity: args.max_disparity,
+            min_disparity: settings.min_disparity,
+            max_disparity: settings.max_disparity,
             matcher,
             output,
             disparity: args.disparity,
             stats: args.stats,
             quiet: args.quiet,
+            expected_size: None,
         };
         config.check_paths()?;
         Ok(config)
@@ -225,7 +314,7 @@ fn subpixel(arg: SubpixelArg) -> Subpixel {
     }
 }
 
-fn lr_max_diff(args: &PairArgs, default: Option<f32>) -> Result<Option<f32>, UsageError> {
+fn lr_max_diff(args: &MatchArgs, default: Option<f32>) -> Result<Option<f32>, UsageError> {
     if args.no_lr_check {
         return Ok(None);
     }
@@ -239,7 +328,7 @@ fn lr_max_diff(args: &PairArgs, default: Option<f32>) -> Result<Option<f32>, Usa
 }
 
 /// The matcher and its parameters; options of the other matcher are rejected, not ignored.
-fn matcher(args: &PairArgs) -> Result<Matcher, UsageError> {
+fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
     let reject = |given: bool, flag: &str, matcher: &str| {
         if given {
             Err(usage!("{flag} applies only to --matcher {matcher}"))
@@ -290,6 +379,74 @@ fn matcher(args: &PairArgs) -> Result<Matcher, UsageError> {
             };
             Ok(Matcher::Bm(params))
         }
+    }
+}
+
+/// The batch command, checked (the folders are checked when it runs).
+#[derive(Clone, Debug)]
+pub struct BatchConfig {
+    pub input: PathBuf,
+    pub out: PathBuf,
+    pub rig: RigFlags,
+    pub matching: MatchSettings,
+    pub disparity: bool,
+    pub stats: bool,
+    pub overwrite: bool,
+    pub quiet: bool,
+    pub list: bool,
+    pub pattern: Option<Pattern>,
+    pub shard: Option<Shard>,
+    /// Pairs in flight.
+    pub jobs: usize,
+    pub threads: Option<u16>,
+}
+
+impl BatchConfig {
+    pub fn from_args(args: BatchArgs) -> Result<Self, UsageError> {
+        let matching = MatchSettings::from_args(&args.matching)?;
+        let rig = RigFlags::from_args(&args.rig)?;
+        if args.rig.focal.is_some() != args.rig.pixel.is_some() {
+            return Err(usage!("--focal and --pixel must be given together"));
+        }
+        let pattern = match &args.pattern {
+            Some(text) => {
+                Some(Pattern::parse(text).map_err(|err| usage!("invalid --pattern {text:?}: {err}"))?)
+            }
+            None => None,
+        };
+        let shard = match &args.shard {
+            Some(text) => Some(Shard::parse(text).map_err(|err| usage!("invalid --shard {text:?}: {err}"))?),
+            None => None,
+        };
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let jobs = args.jobs.map_or(cores.min(2), usize::from);
+        Ok(BatchConfig {
+            input: args.input,
+            out: args.out,
+            rig,
+            matching,
+            disparity: args.disparity,
+            stats: args.stats,
+            overwrite: args.overwrite,
+            quiet: args.quiet,
+            list: args.list,
+            pattern,
+            shard,
+            jobs,
+            threads: args.threads,
+        })
+    }
+}
+
+/// The batch-merge command.
+#[derive(Clone, Debug)]
+pub struct BatchMergeConfig {
+    pub out: PathBuf,
+}
+
+impl BatchMergeConfig {
+    pub fn from_args(args: BatchMergeArgs) -> Result<Self, UsageError> {
+        Ok(BatchMergeConfig { out: args.out })
     }
 }
 

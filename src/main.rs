@@ -5,7 +5,10 @@
 //! checks). A closed stdout (`stereo-depth ... | head`) ends the program normally.
 
 mod args;
+mod batch;
+mod calc;
 mod config;
+mod discover;
 mod eval_cmd;
 mod pair;
 mod report;
@@ -16,7 +19,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 
 use crate::args::{Cli, Command};
-use crate::config::{EvalConfig, PairConfig, UsageError};
+use crate::config::{BatchConfig, BatchMergeConfig, EvalConfig, PairConfig, UsageError};
 
 fn main() -> ExitCode {
     match run() {
@@ -42,6 +45,15 @@ fn run() -> anyhow::Result<ExitCode> {
     };
     let mut stdout = io::stdout().lock();
     match cli.command {
+        Some(Command::Batch(args)) => {
+            let config = BatchConfig::from_args(*args)?;
+            return batch::run(&config, &mut stdout);
+        }
+        Some(Command::BatchMerge(args)) => {
+            let config = BatchMergeConfig::from_args(args)?;
+            return batch::merge(&config, &mut stdout);
+        }
+        Some(Command::Calc(args)) => calc::run(args, &mut stdout)?,
         Some(Command::Eval(args)) => {
             let config = EvalConfig::from_args(args)?;
             eval_cmd::run(&config, &mut stdout)?;

@@ -15,6 +15,21 @@ use crate::report::{self, MatcherReport, Outputs, RigReport, Stats, Summary, Tim
 use stereo_triangulation::{DepthStats, DisparityStats};
 
 pub fn run(config: &PairConfig, out: &mut impl Write) -> Result<()> {
+    let stats = process(config)?;
+    if !config.quiet {
+        report::write_summary(out, &stats)?;
+    }
+    for (what, path) in config.outputs() {
+        writeln!(out, "{what}: {}", path.display())?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+/// The work on one pair, shared by the pair and batch commands: load, match, triangulate, write
+/// every output of `config` (depth map, then the disparity map and statistics when asked for).
+/// On failure no output of this call is left behind.
+pub fn process(config: &PairConfig) -> Result<Stats> {
     let start = Instant::now();
     check_output_folders(config)?;
 
@@ -34,6 +49,15 @@ pub fn run(config: &PairConfig, out: &mut impl Write) -> Result<()> {
         );
     }
     let (width, height) = left.size();
+    if let Some((w, h)) = config.expected_size {
+        if (w, h) != (width, height) {
+            bail!(
+                "{} is {width}x{height} but its calib.txt is for {w}x{h}; the focal length and \
+                 principal point would not apply",
+                config.left.display()
+            );
+        }
+    }
     let range = config.resolve_range(width)?;
     let mut matcher = config.matcher.clone();
     matcher.set_range(range);
@@ -96,15 +120,7 @@ pub fn run(config: &PairConfig, out: &mut impl Write) -> Result<()> {
         stereo_io::write_atomic(path, &json).context("cannot write the statistics")?;
     }
     written.commit();
-
-    if !config.quiet {
-        report::write_summary(out, &stats)?;
-    }
-    for (what, path) in config.outputs() {
-        writeln!(out, "{what}: {}", path.display())?;
-    }
-    out.flush()?;
-    Ok(())
+    Ok(stats)
 }
 
 fn run_matcher(matcher: &Matcher, left: &GrayImage, right: &GrayImage) -> Result<DisparityMap> {

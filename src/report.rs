@@ -80,8 +80,9 @@ pub enum MatcherReport {
 #[derive(Debug, Serialize)]
 pub struct RigReport {
     pub baseline_mm: f64,
-    pub focal_mm: f64,
-    pub pixel_um: f64,
+    /// `null` when the focal length came in pixels from a Middlebury calib.txt (batch).
+    pub focal_mm: Option<f64>,
+    pub pixel_um: Option<f64>,
     pub focal_px: f64,
     pub doffs: f64,
     /// `[cx, cy]` in pixels.
