@@ -3,25 +3,30 @@
 //! `L_r(p, d) = C(p, d) + min(L_r(p-r, d), L_r(p-r, d±1) + P1, min_k L_r(p-r, k) + P2) - min_k L_r(p-r, k)`
 //!
 //! summed over the path directions `r`. The directions split into a forward pass (rows top to
-//! bottom, pixels left to right: →, ↓, ↘, ↙) and a mirrored backward pass; the two passes run on
-//! two threads and add their row sums into the shared volume under a per-row lock, so the
-//! aggregated volume is the only `W·H·D` buffer besides the cost volume.
+//! bottom, pixels left to right: →, ↓, ↘, ↙) and a mirrored backward pass, run on two threads.
+//!
+//! Each pass computes the census Hamming costs of a row on the fly (no stored cost volume) and
+//! runs the four path steps of a pixel in one fused SIMD kernel ([`crate::simd::path_step`]),
+//! which adds the path costs straight into the shared `u16` sum volume. Rows are handed over
+//! through a per-row lock: the first pass to reach a row stores its sums, the second adds its own
+//! and, the row now being final, selects the row's disparities while it is still in cache. So
+//! the aggregated volume (`2·W·H·D` bytes) is the only `W·H·D` buffer; each pass holds
+//! `O(W·D)` of path state, allocated once.
 
 use std::sync::Mutex;
 
-use crate::{GrayImage, PathCount};
-
-/// Penalties of the smoothness term, in cost units.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Penalties {
-    pub p1: u16,
-    pub p2: u16,
-}
+use crate::simd::{self, padded_lanes, Level, PathIn, PAD};
+use crate::wta::{select_row, Selection, WtaScratch};
+use crate::{DisparityRange, GrayImage, Image, PathCount};
 
 /// P2 for each intensity step along a path (8-bit grey levels, 0..=255): disparity jumps are
 /// cheaper across image edges, where depth discontinuities usually are.
 /// `P2(ΔI) = max(P1 + 1, P2 · s / (s + ΔI))` for edge scale `s`; `s = 0` keeps P2 constant.
-pub(crate) struct P2Table([u16; 256]);
+pub(crate) struct P2Table {
+    table: [u16; 256],
+    /// `Some(P2)` when P2 does not depend on the intensity step (edge scale 0).
+    constant: Option<u16>,
+}
 
 impl P2Table {
     pub(crate) fn new(p1: u16, p2: u16, edge_scale: u16) -> Self {
@@ -32,59 +37,52 @@ impl P2Table {
                 *v = ((u32::from(p2) * s / (s + step as u32)) as u16).max(p1 + 1);
             }
         }
-        P2Table(t)
+        P2Table { table: t, constant: (edge_scale == 0).then_some(p2) }
     }
 
+    /// P2 between neighbouring pixels of intensities `a` and `b`.
     #[inline]
-    fn penalties(&self, p1: u16, a: u16, b: u16) -> Penalties {
-        Penalties { p1, p2: self.0[usize::from(a.abs_diff(b) / 257)] }
+    pub(crate) fn p2(&self, a: u16, b: u16) -> u16 {
+        match self.constant {
+            Some(p2) => p2,
+            None => self.table[usize::from(a.abs_diff(b) / 257)],
+        }
     }
 }
-
-/// Padding on both ends of each pixel's path-cost vector so the `d±1` neighbours need no
-/// bounds checks: large enough never to win, small enough that `+ P1` cannot overflow.
-const PAD: u16 = 0x7fff;
 
 /// Largest P2 accepted, so every sum of eight path costs fits in `u16`.
 pub(crate) const MAX_P2: u16 = 4000;
 
-/// One step of the recurrence for one pixel: `prev` and `out` are padded (`nd + 2` entries);
-/// returns `min_k out`.
-#[inline]
-fn path_step(cost: &[u8], prev: &[u16], prev_min: u16, pen: Penalties, out: &mut [u16]) -> u16 {
-    let nd = cost.len();
-    let jump = prev_min + pen.p2;
-    let mut min = u16::MAX;
-    for k in 0..nd {
-        let best = prev[k + 1].min(prev[k] + pen.p1).min(prev[k + 2] + pen.p1).min(jump);
-        let v = u16::from(cost[k]) + best - prev_min;
-        out[k + 1] = v;
-        min = min.min(v);
-    }
-    min
+/// What the aggregation reads.
+pub(crate) struct Inputs<'a> {
+    /// The left image (for the edge-adaptive P2).
+    pub image: &'a GrayImage,
+    pub census_left: &'a Image<u64>,
+    pub census_right: &'a Image<u64>,
+    pub range: DisparityRange,
+    /// Matching cost of a disparity that points outside the right image.
+    pub worst: u16,
+    pub paths: PathCount,
+    pub p1: u16,
+    pub p2: &'a P2Table,
+    pub selection: Selection,
 }
 
-/// The first pixel of a path has no predecessor: its path cost is the matching cost.
-#[inline]
-fn path_start(cost: &[u8], out: &mut [u16]) -> u16 {
-    let mut min = u16::MAX;
-    for (o, &c) in out[1..=cost.len()].iter_mut().zip(cost) {
-        *o = u16::from(c);
-        min = min.min(*o);
-    }
-    min
+/// Bytes of path state one pass holds (for the memory plan).
+pub(crate) fn pass_state_bytes(width: usize, nd: usize, paths: PathCount) -> usize {
+    let lanes = padded_lanes(nd);
+    let stride = lanes + 2;
+    let row_paths = if paths == PathCount::Eight { 3 } else { 1 };
+    // cost row + two rows per row path (+ minima) + horizontal + zero vector + WTA scratch
+    2 * (width * lanes + row_paths * 2 * width * (stride + 1) + 3 * stride) + WtaScratch::bytes(width)
 }
 
-/// Path costs of one row for one direction, padded per pixel, with each pixel's minimum.
-struct RowPaths {
-    costs: Vec<u16>,
-    mins: Vec<u16>,
-}
-
-impl RowPaths {
-    fn new(width: usize, nd: usize) -> Self {
-        RowPaths { costs: vec![PAD; width * (nd + 2)], mins: vec![0; width] }
-    }
+/// One row of the shared output: the path sums and the disparities, and whether one pass has
+/// already stored its sums.
+struct RowSlot<'a> {
+    sum: &'a mut [u16],
+    disparity: &'a mut [f32],
+    visited: bool,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -95,133 +93,214 @@ enum Pass {
     Backward,
 }
 
-/// Adds the aggregated path costs of all directions into `sum` (`[y][x][d]`, zeroed by the
-/// caller). `cost` has the same layout.
-pub(crate) fn aggregate_paths(
-    image: &GrayImage,
-    cost: &[u8],
-    nd: usize,
-    paths: PathCount,
-    p1: u16,
-    p2: &P2Table,
-    sum: &mut [u16],
-) {
-    let (width, height) = image.size();
-    debug_assert_eq!(cost.len(), width * height * nd);
-    debug_assert_eq!(sum.len(), cost.len());
-    let rows: Vec<Mutex<&mut [u16]>> = sum.chunks_mut(width * nd).map(Mutex::new).collect();
-    let diagonals = paths == PathCount::Eight;
+/// Aggregates all path directions into `sum` (`[y][x][d]`, any initial contents) and selects
+/// every row's disparities into `disparity`.
+pub(crate) fn aggregate_and_select(inputs: &Inputs<'_>, sum: &mut [u16], disparity: &mut [f32]) {
+    let (width, height) = inputs.image.size();
+    let nd = inputs.range.count();
+    debug_assert_eq!(sum.len(), width * height * nd);
+    debug_assert_eq!(disparity.len(), width * height);
+    let rows: Vec<Mutex<RowSlot<'_>>> = sum
+        .chunks_mut(width * nd)
+        .zip(disparity.chunks_mut(width))
+        .map(|(sum, disparity)| Mutex::new(RowSlot { sum, disparity, visited: false }))
+        .collect();
     rayon::join(
-        || aggregate_pass(image, cost, nd, diagonals, p1, p2, Pass::Forward, &rows),
-        || aggregate_pass(image, cost, nd, diagonals, p1, p2, Pass::Backward, &rows),
+        || aggregate_pass(inputs, Pass::Forward, &rows),
+        || aggregate_pass(inputs, Pass::Backward, &rows),
     );
 }
 
-#[allow(clippy::too_many_arguments)]
-fn aggregate_pass(
-    image: &GrayImage,
-    cost: &[u8],
-    nd: usize,
-    diagonals: bool,
-    p1: u16,
-    p2: &P2Table,
-    pass: Pass,
-    rows: &[Mutex<&mut [u16]>],
-) {
-    let (width, height) = image.size();
-    let stride = nd + 2;
+/// How many pixels ahead the second pass prefetches the sums it will add to: by then the first
+/// pass's sums of that row have long left the cache.
+const PREFETCH_PIXELS: usize = 6;
+
+/// Asks for the stored sums of the pixel `PREFETCH_PIXELS` ahead in this pass's direction.
+#[inline(always)]
+fn prefetch_ahead(sum: &[u16], x: usize, nd: usize, forward: bool) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let width = sum.len() / nd;
+        let ahead = if forward { x + PREFETCH_PIXELS } else { x.wrapping_sub(PREFETCH_PIXELS) };
+        if ahead < width {
+            let bytes = &sum[ahead * nd..(ahead + 1) * nd];
+            let (start, end) = (bytes.as_ptr() as usize, bytes.as_ptr() as usize + 2 * nd);
+            let mut line = start & !63;
+            while line < end {
+                // SAFETY: a prefetch is only a hint; it never faults, and the address lies inside
+                // `sum` (rounded down to its cache line).
+                unsafe {
+                    std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(line as *const i8)
+                };
+                line += 64;
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (sum, x, nd, forward);
+}
+
+/// Path costs of one row for one direction (padded per pixel) and each pixel's minimum.
+struct RowPaths {
+    costs: Vec<u16>,
+    mins: Vec<u16>,
+}
+
+impl RowPaths {
+    fn pair(width: usize, stride: usize) -> [RowPaths; 2] {
+        std::array::from_fn(|_| RowPaths { costs: vec![PAD; width * stride], mins: vec![0; width] })
+    }
+}
+
+fn aggregate_pass(inputs: &Inputs<'_>, pass: Pass, rows: &[Mutex<RowSlot<'_>>]) {
+    match simd::features().level {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the level was detected on this CPU.
+        Level::Avx512 => unsafe { aggregate_pass_avx512(inputs, pass, rows) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as above.
+        Level::Avx2 => unsafe { aggregate_pass_avx2(inputs, pass, rows) },
+        _ => aggregate_pass_generic(inputs, pass, rows, Level::Scalar),
+    }
+}
+
+/// The pass compiled for AVX-512BW, so the path-step kernel inlines into the pixel loop.
+///
+/// # Safety
+/// The CPU must have AVX-512F/BW/VL.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2")]
+unsafe fn aggregate_pass_avx512(inputs: &Inputs<'_>, pass: Pass, rows: &[Mutex<RowSlot<'_>>]) {
+    aggregate_pass_generic(inputs, pass, rows, Level::Avx512)
+}
+
+/// The pass compiled for AVX2.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn aggregate_pass_avx2(inputs: &Inputs<'_>, pass: Pass, rows: &[Mutex<RowSlot<'_>>]) {
+    aggregate_pass_generic(inputs, pass, rows, Level::Avx2)
+}
+
+#[inline(always)]
+fn aggregate_pass_generic(inputs: &Inputs<'_>, pass: Pass, rows: &[Mutex<RowSlot<'_>>], level: Level) {
+    let (width, height) = inputs.image.size();
+    let nd = inputs.range.count();
+    let features = simd::features();
+    let lanes = padded_lanes(nd);
+    let stride = lanes + 2;
+    let diagonals = inputs.paths == PathCount::Eight;
+    let (p1, p2) = (inputs.p1, inputs.p2);
+
+    let mut cost = vec![0u16; width * lanes];
     // Previous and current row of the vertical and the two diagonal paths.
-    let mut vertical = [RowPaths::new(width, nd), RowPaths::new(width, nd)];
-    let mut diag_a = [RowPaths::new(width, nd), RowPaths::new(width, nd)];
-    let mut diag_b = [RowPaths::new(width, nd), RowPaths::new(width, nd)];
+    let mut vertical = RowPaths::pair(width, stride);
+    let (mut diag_a, mut diag_b) = if diagonals {
+        (RowPaths::pair(width, stride), RowPaths::pair(width, stride))
+    } else {
+        (RowPaths::pair(0, stride), RowPaths::pair(0, stride))
+    };
     let mut horizontal = [vec![PAD; stride], vec![PAD; stride]];
-    let mut row_sum = vec![0u16; width * nd];
+    // A path entering the image: stepping from all-zero costs yields the matching cost.
+    let zero = vec![0u16; stride];
+    let start = PathIn { prev: &zero, prev_min: 0, p2: 0 };
+    let mut scratch = WtaScratch::new(width);
 
-    // `step` is the x direction of this pass: the horizontal path comes from x - step, the
-    // diagonal "a" from (x - step) in the previous row and "b" from (x + step).
-    let step: isize = if pass == Pass::Forward { 1 } else { -1 };
-    let ys: Vec<usize> = match pass {
-        Pass::Forward => (0..height).collect(),
-        Pass::Backward => (0..height).rev().collect(),
-    };
-    let xs: Vec<usize> = match pass {
-        Pass::Forward => (0..width).collect(),
-        Pass::Backward => (0..width).rev().collect(),
-    };
-
-    for (row_index, &y) in ys.iter().enumerate() {
+    // The diagonal "a" comes from x - step in the previous row of the pass, "b" from x + step.
+    let forward = pass == Pass::Forward;
+    for row_index in 0..height {
+        let y = if forward { row_index } else { height - 1 - row_index };
         let first_row = row_index == 0;
+        let prev_y = if first_row {
+            y
+        } else if forward {
+            y - 1
+        } else {
+            y + 1
+        };
+        let row = inputs.image.row(y);
+        let prev_row = inputs.image.row(prev_y);
+        simd::cost_row(
+            features,
+            inputs.census_left.row(y),
+            inputs.census_right.row(y),
+            inputs.range.min,
+            nd,
+            inputs.worst,
+            &mut cost,
+        );
+
+        let mut slot = rows[y].lock().unwrap_or_else(|e| e.into_inner());
+        let accumulate = slot.visited;
         let [v_prev, v_cur] = &mut vertical;
         let [a_prev, a_cur] = &mut diag_a;
         let [b_prev, b_cur] = &mut diag_b;
         let mut h_min = 0u16;
-        let row = image.row(y);
-        // The previous row of this pass (unused on its first row).
-        let prev_row = image.row(if first_row { y } else { ys[row_index - 1] });
-        for (col_index, &x) in xs.iter().enumerate() {
-            let c = &cost[(y * width + x) * nd..][..nd];
+        // The input of a path continuing from pixel `from` of the previous row.
+        fn at<'a>(paths: &'a RowPaths, from: usize, stride: usize, p2: u16) -> PathIn<'a> {
+            PathIn { prev: &paths.costs[from * stride..(from + 1) * stride], prev_min: paths.mins[from], p2 }
+        }
+        for col_index in 0..width {
+            let x = if forward { col_index } else { width - 1 - col_index };
+            let c = &cost[x * lanes..(x + 1) * lanes];
             let here = row[x];
-
-            // Horizontal path, from the previous pixel of this row.
-            let [h_prev, h_cur] = &mut horizontal;
-            h_min = if col_index == 0 {
-                path_start(c, h_cur)
-            } else {
-                let pen = p2.penalties(p1, here, row[xs[col_index - 1]]);
-                path_step(c, h_prev, h_min, pen, h_cur)
-            };
-            // Vertical path, from the same column of the previous row.
-            let from_row = (!first_row).then_some(x);
-            row_step(c, v_prev, v_cur, x, from_row, stride, p2.penalties(p1, here, prev_row[x]));
-
-            let out = &mut row_sum[x * nd..(x + 1) * nd];
-            let v = &v_cur.costs[x * stride + 1..][..nd];
-            for ((o, &hv), &vv) in out.iter_mut().zip(&h_cur[1..=nd]).zip(v) {
-                *o = hv + vv;
+            if accumulate {
+                prefetch_ahead(slot.sum, x, nd, forward);
             }
-
+            let sum = &mut slot.sum[x * nd..(x + 1) * nd];
+            let [h_prev, h_cur] = &mut horizontal;
+            let h_in = if col_index == 0 {
+                start
+            } else {
+                let from = if forward { x - 1 } else { x + 1 };
+                PathIn { prev: h_prev, prev_min: h_min, p2: p2.p2(here, row[from]) }
+            };
+            let v_in = if first_row { start } else { at(v_prev, x, stride, p2.p2(here, prev_row[x])) };
+            let v_out = &mut v_cur.costs[x * stride..(x + 1) * stride];
             if diagonals {
-                let neighbour = |offset: isize| {
-                    let from = x as isize + offset;
-                    (!first_row && from >= 0 && (from as usize) < width).then_some(from as usize)
+                let (left, right) = (x.checked_sub(1), (x + 1 < width).then_some(x + 1));
+                let (a_from, b_from) = if forward { (left, right) } else { (right, left) };
+                let a_in = match a_from {
+                    Some(f) if !first_row => at(a_prev, f, stride, p2.p2(here, prev_row[f])),
+                    _ => start,
                 };
-                let (a_from, b_from) = (neighbour(-step), neighbour(step));
-                let pen_a = p2.penalties(p1, here, a_from.map_or(here, |f| prev_row[f]));
-                let pen_b = p2.penalties(p1, here, b_from.map_or(here, |f| prev_row[f]));
-                row_step(c, a_prev, a_cur, x, a_from, stride, pen_a);
-                row_step(c, b_prev, b_cur, x, b_from, stride, pen_b);
-                let (a, b) = (&a_cur.costs[x * stride + 1..][..nd], &b_cur.costs[x * stride + 1..][..nd]);
-                for ((o, &av), &bv) in out.iter_mut().zip(a).zip(b) {
-                    *o += av + bv;
-                }
+                let b_in = match b_from {
+                    Some(f) if !first_row => at(b_prev, f, stride, p2.p2(here, prev_row[f])),
+                    _ => start,
+                };
+                let a_out = &mut a_cur.costs[x * stride..(x + 1) * stride];
+                let b_out = &mut b_cur.costs[x * stride..(x + 1) * stride];
+                let [mh, mv, ma, mb] = simd::path_step(
+                    level,
+                    c,
+                    p1,
+                    [h_in, v_in, a_in, b_in],
+                    [h_cur, v_out, a_out, b_out],
+                    sum,
+                    accumulate,
+                );
+                h_min = mh;
+                v_cur.mins[x] = mv;
+                a_cur.mins[x] = ma;
+                b_cur.mins[x] = mb;
+            } else {
+                let [mh, mv] = simd::path_step(level, c, p1, [h_in, v_in], [h_cur, v_out], sum, accumulate);
+                h_min = mh;
+                v_cur.mins[x] = mv;
             }
             horizontal.swap(0, 1);
         }
         vertical.swap(0, 1);
         diag_a.swap(0, 1);
         diag_b.swap(0, 1);
-        // Each row is locked twice in all (once per pass); the passes only meet mid-image.
-        let mut dst = rows[y].lock().unwrap_or_else(|e| e.into_inner());
-        for (d, s) in dst.iter_mut().zip(&row_sum) {
-            *d += s;
+        if accumulate {
+            // Both passes are in: the row's sums are final.
+            let RowSlot { sum, disparity, .. } = &mut *slot;
+            select_row(sum, width, nd, inputs.selection, &mut scratch, disparity);
+        } else {
+            slot.visited = true;
         }
     }
-}
-
-/// The path cost at pixel `x` of the current row, continuing from pixel `from` of the previous
-/// row, or starting afresh when the path enters the image here (`from` is `None`).
-fn row_step(
-    c: &[u8],
-    prev: &RowPaths,
-    cur: &mut RowPaths,
-    x: usize,
-    from: Option<usize>,
-    stride: usize,
-    pen: Penalties,
-) {
-    let out = &mut cur.costs[x * stride..(x + 1) * stride];
-    cur.mins[x] = match from {
-        None => path_start(c, out),
-        Some(f) => path_step(c, &prev.costs[f * stride..(f + 1) * stride], prev.mins[f], pen, out),
-    };
 }

@@ -33,7 +33,7 @@ pub fn block_match(left: &GrayImage, right: &GrayImage, params: &BmParams) -> Re
     let (width, height) = left.size();
     params.range.check(width)?;
     let block = params.block_size;
-    if block % 2 == 0 || !(3..=MAX_BLOCK_SIZE).contains(&block) {
+    if block.is_multiple_of(2) || !(3..=MAX_BLOCK_SIZE).contains(&block) {
         return Err(Error::InvalidParameter {
             name: "block size",
             message: format!("{block} must be odd and between 3 and {MAX_BLOCK_SIZE}"),

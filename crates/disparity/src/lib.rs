@@ -22,16 +22,22 @@
 
 mod aggregate;
 mod bm;
+mod buffer;
 mod census;
 mod cost;
 mod filter;
 mod image;
+#[cfg(test)]
+mod reference;
 mod sgm;
+mod simd;
+#[doc(hidden)]
+pub mod stages;
 mod wta;
 
 pub use bm::block_match;
 pub use image::{DisparityMap, GrayImage, Image};
-pub use sgm::sgm;
+pub use sgm::{planned_memory_bytes, sgm};
 
 /// Errors a matcher reports instead of panicking on unusable input.
 #[derive(Debug, thiserror::Error)]
@@ -136,8 +142,8 @@ pub struct CensusWindow {
 
 impl CensusWindow {
     pub(crate) fn check(&self) -> Result<(), Error> {
-        if self.width % 2 == 0
-            || self.height % 2 == 0
+        if self.width.is_multiple_of(2)
+            || self.height.is_multiple_of(2)
             || self.width * self.height > 65
             || self.width * self.height < 9
         {

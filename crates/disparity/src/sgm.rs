@@ -1,10 +1,11 @@
 //! Semi-Global Matching: census cost volume, path aggregation, winner-takes-all, checks.
 
-use crate::aggregate::{aggregate_paths, P2Table, MAX_P2};
+use crate::aggregate::{aggregate_and_select, pass_state_bytes, Inputs, P2Table, MAX_P2};
+use crate::buffer::{give_back_volume, take_volume};
 use crate::census::census_transform;
-use crate::cost::hamming_cost_volume;
+use crate::cost::infeasible_cost;
 use crate::filter::median_3x3;
-use crate::wta::{select_disparities, Selection};
+use crate::wta::Selection;
 use crate::{check_pair, DisparityMap, Error, GrayImage, Image, SgmParams};
 
 /// Semi-Global Matching of a rectified pair (Hirschmüller 2008) with census costs.
@@ -40,6 +41,12 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
     }
 
     let nd = params.range.count();
+    if nd >= usize::from(u16::MAX) {
+        return Err(Error::InvalidParameter {
+            name: "disparity range",
+            message: format!("{nd} disparities; at most {} are supported", u16::MAX - 1),
+        });
+    }
     let census_bits = (params.census.width * params.census.height - 1) as u32;
     let mut census_left = Image::new(width, height, 0u64);
     let mut census_right = Image::new(width, height, 0u64);
@@ -48,27 +55,49 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
         || census_transform(right, params.census, &mut census_right),
     );
 
-    let mut cost = vec![0u8; width * height * nd];
-    hamming_cost_volume(&census_left, &census_right, params.range, census_bits, &mut cost);
-    drop((census_left, census_right));
-
-    let mut sum = vec![0u16; width * height * nd];
-    let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
-    aggregate_paths(left, &cost, nd, params.paths, params.p1, &p2, &mut sum);
-    drop(cost);
-
+    // The only W·H·D buffer: the aggregated path costs (every entry is written before it is read,
+    // so a buffer left over from the previous call serves as well as a fresh one).
+    let mut sum = take_volume(width * height * nd);
     let mut disparity = DisparityMap::new(width, height, f32::NAN);
-    let selection = Selection {
+    let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
+    let inputs = Inputs {
+        image: left,
+        census_left: &census_left,
+        census_right: &census_right,
         range: params.range,
-        uniqueness_ratio: params.uniqueness_ratio,
-        lr_max_diff: params.lr_max_diff,
-        subpixel: params.subpixel,
+        worst: infeasible_cost(census_bits),
+        paths: params.paths,
+        p1: params.p1,
+        p2: &p2,
+        selection: Selection {
+            range: params.range,
+            uniqueness_ratio: params.uniqueness_ratio,
+            lr_max_diff: params.lr_max_diff,
+            subpixel: params.subpixel,
+        },
     };
-    select_disparities(&sum, width, nd, selection, &mut disparity);
+    aggregate_and_select(&inputs, &mut sum.as_mut_slice()[..width * height * nd], disparity.as_mut_slice());
+    drop((census_left, census_right));
+    give_back_volume(sum);
+
     if params.median {
         disparity = median_3x3(&disparity);
     }
     Ok(disparity)
+}
+
+/// The peak working memory [`sgm`] plans for a `width × height` pair, in bytes: the `u16`
+/// aggregated volume (`2·W·H·D`), both census images, the disparity map (twice while the median
+/// runs) and the `O(W·D)` path state of each of the two aggregation passes. The input images are
+/// not counted.
+pub fn planned_memory_bytes(width: usize, height: usize, params: &SgmParams) -> usize {
+    let nd = params.range.count();
+    let pixels = width * height;
+    let sum = 2 * pixels * nd;
+    let census = 2 * 8 * pixels;
+    let disparity = 4 * pixels * if params.median { 2 } else { 1 };
+    let row_locks = height * 64;
+    sum + census + disparity + row_locks + 2 * pass_state_bytes(width, nd, params.paths)
 }
 
 #[cfg(test)]
@@ -87,7 +116,8 @@ mod tests {
         for paths in [PathCount::Four, PathCount::Eight] {
             let left = GrayImage::from_fn(80, 40, |x, y| texture(x as i64, y as i64));
             let right = GrayImage::from_fn(80, 40, |x, y| texture(x as i64 + 7, y as i64));
-            let params = SgmParams { range: DisparityRange::new(0, 24).unwrap(), paths, ..SgmParams::default() };
+            let params =
+                SgmParams { range: DisparityRange::new(0, 24).unwrap(), paths, ..SgmParams::default() };
             let d = sgm(&left, &right, &params).unwrap();
             let mut good = 0;
             for y in 0..40 {
@@ -109,6 +139,79 @@ mod tests {
         let params = SgmParams { range: DisparityRange::new(-8, 8).unwrap(), ..SgmParams::default() };
         let d = sgm(&left, &right, &params).unwrap();
         assert!((d.get(30, 15) + 3.0).abs() < 0.5);
+    }
+
+    /// A random pair: textured with a shift, random levels, or two-level noise.
+    fn random_pair(w: usize, h: usize, kind: u8, shift: i64, seed: u64) -> (GrayImage, GrayImage) {
+        let mut s = seed | 1;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        };
+        let tex: Vec<u16> = (0..(w + 200) * h).map(|_| next() as u16).collect();
+        let at = |x: i64, y: usize| tex[y * (w + 200) + (x + 100) as usize];
+        let left = GrayImage::from_fn(w, h, |x, y| match kind {
+            0 => at(x as i64, y),
+            1 => (at(x as i64, y) % 4) * 20000,
+            _ => at(x as i64, y) & 0x8000,
+        });
+        let right = GrayImage::from_fn(w, h, |x, y| match kind {
+            0 => at(x as i64 + shift, y),
+            1 => (at(x as i64 + shift + 1, y) % 4) * 20000,
+            _ => at(x as i64 + shift, y) & 0x8000,
+        });
+        (left, right)
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// The fused, SIMD pipeline gives the original scalar pipeline's maps bit for bit.
+        #[test]
+        fn sgm_matches_the_scalar_reference(
+            w in 9usize..90, h in 7usize..40, nd_frac in 0.0f64..1.0, min in -12i32..12, kind in 0u8..3,
+            four in proptest::prelude::any::<bool>(), p1 in 1u16..60, p2_extra in 1u16..300, edge in 0u16..60,
+            uniq in 0u32..20, lr in proptest::prelude::any::<Option<u8>>(), sub in 0u8..3, median in proptest::prelude::any::<bool>(),
+            window in 0usize..4, seed in proptest::prelude::any::<u64>(),
+        ) {
+            let nd = ((w as f64 * nd_frac.min(0.8)) as usize).max(1) as i32;
+            let (cw, ch) = [(3, 3), (5, 5), (9, 7), (7, 9)][window];
+            proptest::prop_assume!(w >= cw && h >= ch);
+            let params = SgmParams {
+                range: DisparityRange::new(min, min + nd).unwrap(),
+                census: crate::CensusWindow { width: cw, height: ch },
+                paths: if four { PathCount::Four } else { PathCount::Eight },
+                p1,
+                p2: (p1 + p2_extra).min(MAX_P2),
+                p2_edge_scale: edge,
+                uniqueness_ratio: uniq,
+                lr_max_diff: lr.map(|v| f32::from(v % 4) * 0.75),
+                subpixel: [crate::Subpixel::None, crate::Subpixel::Parabola, crate::Subpixel::Equiangular][sub as usize],
+                median,
+            };
+            let (left, right) = random_pair(w, h, kind, (seed % nd as u64) as i64 + i64::from(min), seed);
+            let fast = sgm(&left, &right, &params).unwrap();
+            let reference = crate::reference::sgm_reference(&left, &right, &params);
+            for (i, (a, b)) in fast.as_slice().iter().zip(reference.as_slice()).enumerate() {
+                proptest::prop_assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "pixel {}: {} vs {}", i, a, b);
+            }
+        }
+    }
+
+    #[test]
+    fn planned_memory_is_about_two_bytes_per_disparity_evaluation() {
+        for (w, h, nd) in [(640usize, 480usize, 64i32), (1280, 720, 128), (6000, 4000, 320)] {
+            let params = SgmParams { range: DisparityRange::new(0, nd).unwrap(), ..SgmParams::default() };
+            let planned = planned_memory_bytes(w, h, &params);
+            let volume = 2 * w * h * nd as usize;
+            // The volume, plus census (16 B/px), disparities (8 B/px) and O(W·D) path state.
+            assert!(
+                planned >= volume && planned <= volume + 25 * w * h + 64 * w * nd as usize,
+                "{w}x{h}/{nd}: {planned}"
+            );
+        }
     }
 
     #[test]

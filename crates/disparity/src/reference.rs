@@ -1,0 +1,288 @@
+//! The original scalar SGM pipeline (stored `u8` cost volume, per-row locked path sums),
+//! kept as the readable reference the fused and SIMD pipeline is tested against, bit for bit.
+
+use std::sync::Mutex;
+
+use rayon::prelude::*;
+
+use crate::aggregate::P2Table;
+use crate::{CensusWindow, DisparityRange, GrayImage, Image, PathCount};
+
+#[derive(Clone, Copy, Debug)]
+struct Penalties {
+    p1: u16,
+    p2: u16,
+}
+
+fn penalties(t: &P2Table, p1: u16, a: u16, b: u16) -> Penalties {
+    Penalties { p1, p2: t.p2(a, b) }
+}
+
+/// Fills `volume` (`width * height * range.count()` bytes) with Hamming costs.
+pub(crate) fn hamming_cost_volume(
+    left: &Image<u64>,
+    right: &Image<u64>,
+    range: DisparityRange,
+    census_bits: u32,
+    volume: &mut [u8],
+) {
+    let (width, _) = left.size();
+    let nd = range.count();
+    let worst = census_bits.min(255) as u8;
+    volume.par_chunks_mut(width * nd).enumerate().for_each(|(y, row)| {
+        let (l, r) = (left.row(y), right.row(y));
+        for (x, costs) in row.chunks_exact_mut(nd).enumerate() {
+            for (k, c) in costs.iter_mut().enumerate() {
+                let xr = x as i64 - (range.min as i64 + k as i64);
+                *c = if xr >= 0 && (xr as usize) < width {
+                    (l[x] ^ r[xr as usize]).count_ones() as u8
+                } else {
+                    worst
+                };
+            }
+        }
+    });
+}
+
+/// Padding on both ends of each pixel's path-cost vector so the `d±1` neighbours need no
+/// bounds checks: large enough never to win, small enough that `+ P1` cannot overflow.
+const PAD: u16 = 0x7fff;
+
+/// One step of the recurrence for one pixel: `prev` and `out` are padded (`nd + 2` entries);
+/// returns `min_k out`.
+#[inline]
+fn path_step(cost: &[u8], prev: &[u16], prev_min: u16, pen: Penalties, out: &mut [u16]) -> u16 {
+    let nd = cost.len();
+    let jump = prev_min + pen.p2;
+    let mut min = u16::MAX;
+    for k in 0..nd {
+        let best = prev[k + 1].min(prev[k] + pen.p1).min(prev[k + 2] + pen.p1).min(jump);
+        let v = u16::from(cost[k]) + best - prev_min;
+        out[k + 1] = v;
+        min = min.min(v);
+    }
+    min
+}
+
+/// The first pixel of a path has no predecessor: its path cost is the matching cost.
+#[inline]
+fn path_start(cost: &[u8], out: &mut [u16]) -> u16 {
+    let mut min = u16::MAX;
+    for (o, &c) in out[1..=cost.len()].iter_mut().zip(cost) {
+        *o = u16::from(c);
+        min = min.min(*o);
+    }
+    min
+}
+
+/// Path costs of one row for one direction, padded per pixel, with each pixel's minimum.
+struct RowPaths {
+    costs: Vec<u16>,
+    mins: Vec<u16>,
+}
+
+impl RowPaths {
+    fn new(width: usize, nd: usize) -> Self {
+        RowPaths { costs: vec![PAD; width * (nd + 2)], mins: vec![0; width] }
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Pass {
+    /// Rows top to bottom, pixels left to right.
+    Forward,
+    /// Rows bottom to top, pixels right to left.
+    Backward,
+}
+
+/// Adds the aggregated path costs of all directions into `sum` (`[y][x][d]`, zeroed by the
+/// caller). `cost` has the same layout.
+pub(crate) fn aggregate_paths(
+    image: &GrayImage,
+    cost: &[u8],
+    nd: usize,
+    paths: PathCount,
+    p1: u16,
+    p2: &P2Table,
+    sum: &mut [u16],
+) {
+    let (width, height) = image.size();
+    debug_assert_eq!(cost.len(), width * height * nd);
+    debug_assert_eq!(sum.len(), cost.len());
+    let rows: Vec<Mutex<&mut [u16]>> = sum.chunks_mut(width * nd).map(Mutex::new).collect();
+    let diagonals = paths == PathCount::Eight;
+    rayon::join(
+        || aggregate_pass(image, cost, nd, diagonals, p1, p2, Pass::Forward, &rows),
+        || aggregate_pass(image, cost, nd, diagonals, p1, p2, Pass::Backward, &rows),
+    );
+}
+
+#[allow(clippy::too_many_arguments)]
+fn aggregate_pass(
+    image: &GrayImage,
+    cost: &[u8],
+    nd: usize,
+    diagonals: bool,
+    p1: u16,
+    p2: &P2Table,
+    pass: Pass,
+    rows: &[Mutex<&mut [u16]>],
+) {
+    let (width, height) = image.size();
+    let stride = nd + 2;
+    // Previous and current row of the vertical and the two diagonal paths.
+    let mut vertical = [RowPaths::new(width, nd), RowPaths::new(width, nd)];
+    let mut diag_a = [RowPaths::new(width, nd), RowPaths::new(width, nd)];
+    let mut diag_b = [RowPaths::new(width, nd), RowPaths::new(width, nd)];
+    let mut horizontal = [vec![PAD; stride], vec![PAD; stride]];
+    let mut row_sum = vec![0u16; width * nd];
+
+    // `step` is the x direction of this pass: the horizontal path comes from x - step, the
+    // diagonal "a" from (x - step) in the previous row and "b" from (x + step).
+    let step: isize = if pass == Pass::Forward { 1 } else { -1 };
+    let ys: Vec<usize> = match pass {
+        Pass::Forward => (0..height).collect(),
+        Pass::Backward => (0..height).rev().collect(),
+    };
+    let xs: Vec<usize> = match pass {
+        Pass::Forward => (0..width).collect(),
+        Pass::Backward => (0..width).rev().collect(),
+    };
+
+    for (row_index, &y) in ys.iter().enumerate() {
+        let first_row = row_index == 0;
+        let [v_prev, v_cur] = &mut vertical;
+        let [a_prev, a_cur] = &mut diag_a;
+        let [b_prev, b_cur] = &mut diag_b;
+        let mut h_min = 0u16;
+        let row = image.row(y);
+        // The previous row of this pass (unused on its first row).
+        let prev_row = image.row(if first_row { y } else { ys[row_index - 1] });
+        for (col_index, &x) in xs.iter().enumerate() {
+            let c = &cost[(y * width + x) * nd..][..nd];
+            let here = row[x];
+
+            // Horizontal path, from the previous pixel of this row.
+            let [h_prev, h_cur] = &mut horizontal;
+            h_min = if col_index == 0 {
+                path_start(c, h_cur)
+            } else {
+                let pen = penalties(p2, p1, here, row[xs[col_index - 1]]);
+                path_step(c, h_prev, h_min, pen, h_cur)
+            };
+            // Vertical path, from the same column of the previous row.
+            let from_row = (!first_row).then_some(x);
+            row_step(c, v_prev, v_cur, x, from_row, stride, penalties(p2, p1, here, prev_row[x]));
+
+            let out = &mut row_sum[x * nd..(x + 1) * nd];
+            let v = &v_cur.costs[x * stride + 1..][..nd];
+            for ((o, &hv), &vv) in out.iter_mut().zip(&h_cur[1..=nd]).zip(v) {
+                *o = hv + vv;
+            }
+
+            if diagonals {
+                let neighbour = |offset: isize| {
+                    let from = x as isize + offset;
+                    (!first_row && from >= 0 && (from as usize) < width).then_some(from as usize)
+                };
+                let (a_from, b_from) = (neighbour(-step), neighbour(step));
+                let pen_a = penalties(p2, p1, here, a_from.map_or(here, |f| prev_row[f]));
+                let pen_b = penalties(p2, p1, here, b_from.map_or(here, |f| prev_row[f]));
+                row_step(c, a_prev, a_cur, x, a_from, stride, pen_a);
+                row_step(c, b_prev, b_cur, x, b_from, stride, pen_b);
+                let (a, b) = (&a_cur.costs[x * stride + 1..][..nd], &b_cur.costs[x * stride + 1..][..nd]);
+                for ((o, &av), &bv) in out.iter_mut().zip(a).zip(b) {
+                    *o += av + bv;
+                }
+            }
+            horizontal.swap(0, 1);
+        }
+        vertical.swap(0, 1);
+        diag_a.swap(0, 1);
+        diag_b.swap(0, 1);
+        // Each row is locked twice in all (once per pass); the passes only meet mid-image.
+        let mut dst = rows[y].lock().unwrap_or_else(|e| e.into_inner());
+        for (d, s) in dst.iter_mut().zip(&row_sum) {
+            *d += s;
+        }
+    }
+}
+
+/// The path cost at pixel `x` of the current row, continuing from pixel `from` of the previous
+/// row, or starting afresh when the path enters the image here (`from` is `None`).
+fn row_step(
+    c: &[u8],
+    prev: &RowPaths,
+    cur: &mut RowPaths,
+    x: usize,
+    from: Option<usize>,
+    stride: usize,
+    pen: Penalties,
+) {
+    let out = &mut cur.costs[x * stride..(x + 1) * stride];
+    cur.mins[x] = match from {
+        None => path_start(c, out),
+        Some(f) => path_step(c, &prev.costs[f * stride..(f + 1) * stride], prev.mins[f], pen, out),
+    };
+}
+
+/// The original census transform (clamped reads per neighbour).
+pub(crate) fn census_transform(image: &GrayImage, window: CensusWindow, out: &mut Image<u64>) {
+    let (width, height) = image.size();
+    debug_assert_eq!(out.size(), (width, height));
+    let (rx, ry) = ((window.width / 2) as isize, (window.height / 2) as isize);
+    out.as_mut_slice().par_chunks_mut(width.max(1)).enumerate().for_each(|(y, row)| {
+        let rows: Vec<&[u16]> = (-ry..=ry)
+            .map(|dy| image.row((y as isize + dy).clamp(0, height as isize - 1) as usize))
+            .collect();
+        for (x, bits_out) in row.iter_mut().enumerate() {
+            let centre = image.get(x, y);
+            let mut bits = 0u64;
+            for (dy, r) in (-ry..=ry).zip(&rows) {
+                for dx in -rx..=rx {
+                    if dx == 0 && dy == 0 {
+                        continue;
+                    }
+                    let v = r[(x as isize + dx).clamp(0, width as isize - 1) as usize];
+                    bits = (bits << 1) | u64::from(v < centre);
+                }
+            }
+            *bits_out = bits;
+        }
+    });
+}
+
+/// The whole original pipeline: census, stored cost volume, aggregation, WTA, median.
+pub(crate) fn sgm_reference(
+    left: &GrayImage,
+    right: &GrayImage,
+    params: &crate::SgmParams,
+) -> crate::DisparityMap {
+    let (width, height) = left.size();
+    let nd = params.range.count();
+    let census_bits = (params.census.width * params.census.height - 1) as u32;
+    let mut census_left = Image::new(width, height, 0u64);
+    let mut census_right = Image::new(width, height, 0u64);
+    census_transform(left, params.census, &mut census_left);
+    census_transform(right, params.census, &mut census_right);
+    let mut cost = vec![0u8; width * height * nd];
+    hamming_cost_volume(&census_left, &census_right, params.range, census_bits, &mut cost);
+    let mut sum = vec![0u16; width * height * nd];
+    let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
+    aggregate_paths(left, &cost, nd, params.paths, params.p1, &p2, &mut sum);
+    let mut disparity = crate::DisparityMap::new(width, height, f32::NAN);
+    let selection = crate::wta::Selection {
+        range: params.range,
+        uniqueness_ratio: params.uniqueness_ratio,
+        lr_max_diff: params.lr_max_diff,
+        subpixel: params.subpixel,
+    };
+    let mut right_best = vec![0usize; width];
+    for (out, costs) in disparity.as_mut_slice().chunks_mut(width).zip(sum.chunks(width * nd)) {
+        crate::wta::select_row_reference(costs, width, nd, selection, &mut right_best, out);
+    }
+    if params.median {
+        disparity = crate::filter::median_3x3_reference(&disparity);
+    }
+    disparity
+}

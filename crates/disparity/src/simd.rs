@@ -1,0 +1,787 @@
+//! Hot SGM kernels with one scalar reference each and `std::arch` versions for AVX2 and
+//! AVX-512BW, selected once per process by a cached runtime CPU-feature check.
+//!
+//! Every SIMD kernel computes exactly what its scalar reference computes (tested on random inputs
+//! with proptest on each path the machine supports), so the disparity maps do not depend on the
+//! CPU.
+//!
+//! Layout shared by the kernels: a pixel's path-cost vector is `lanes + 2` `u16` entries, the
+//! disparities `0..lanes` at `1..=lanes` and a pad at each end; `lanes` is the disparity count
+//! rounded up to [`LANES`]. Lanes at or past the disparity count hold [`JUNK_COST`]-sized
+//! values that never win a minimum, so the kernels need no remainder loops.
+
+use std::sync::OnceLock;
+
+/// Disparities are padded to whole blocks of this many `u16` lanes (one AVX2 register, half an
+/// AVX-512 one: the AVX-512 kernels finish an odd block with a 256-bit step).
+pub(crate) const LANES: usize = 16;
+
+/// Pad at both ends of a path-cost vector: never the minimum, and `+ P1` cannot overflow.
+pub(crate) const PAD: u16 = 0x7fff;
+
+/// Matching cost of the lanes past the last disparity. Path costs in those lanes stay within
+/// `JUNK_COST ..= JUNK_COST + P2`, above any real path cost (at most 64 + 2·P2) and, plus P1,
+/// above any real candidate, so they never change a real lane or a path minimum.
+pub(crate) const JUNK_COST: u16 = 0x4000;
+
+/// Disparity count rounded up to whole blocks of [`LANES`].
+pub(crate) fn padded_lanes(nd: usize) -> usize {
+    nd.div_ceil(LANES).max(1) * LANES
+}
+
+/// The instruction set the kernels use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) enum Level {
+    Scalar,
+    Avx2,
+    Avx512,
+}
+
+/// What the CPU supports, detected once.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Features {
+    pub level: Level,
+    /// AVX-512 VPOPCNTQ (for the Hamming costs).
+    pub vpopcnt: bool,
+}
+
+/// The cached feature check. `STEREO_DISPARITY_SIMD=scalar|avx2|avx512` caps the level (for
+/// benchmarks and debugging); it never enables what the CPU lacks.
+pub(crate) fn features() -> Features {
+    static FEATURES: OnceLock<Features> = OnceLock::new();
+    *FEATURES.get_or_init(|| {
+        let detected = detect();
+        let cap = match std::env::var("STEREO_DISPARITY_SIMD").as_deref() {
+            Ok("scalar") => Level::Scalar,
+            Ok("avx2") => Level::Avx2,
+            _ => Level::Avx512,
+        };
+        let level = detected.level.min(cap);
+        Features { level, vpopcnt: detected.vpopcnt && level == Level::Avx512 }
+    })
+}
+
+/// All levels this machine can run, lowest first (for tests and benchmarks).
+#[allow(dead_code)]
+pub(crate) fn supported_levels() -> Vec<Level> {
+    let top = detect().level;
+    [Level::Scalar, Level::Avx2, Level::Avx512].into_iter().filter(|&l| l <= top).collect()
+}
+
+fn detect() -> Features {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let avx2 = is_x86_feature_detected!("avx2");
+        let avx512 = is_x86_feature_detected!("avx512f")
+            && is_x86_feature_detected!("avx512bw")
+            && is_x86_feature_detected!("avx512vl");
+        let vpopcnt = avx512 && is_x86_feature_detected!("avx512vpopcntdq");
+        let level = if avx512 {
+            Level::Avx512
+        } else if avx2 {
+            Level::Avx2
+        } else {
+            Level::Scalar
+        };
+        Features { level, vpopcnt }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        Features { level: Level::Scalar, vpopcnt: false }
+    }
+}
+
+/// One path's input for a step: the previous pixel's padded path-cost vector and its minimum,
+/// and the large-jump penalty for this step. A path that starts here uses an all-zero `prev`
+/// with minimum 0, which makes the step return the matching cost itself.
+#[derive(Clone, Copy)]
+pub(crate) struct PathIn<'a> {
+    pub prev: &'a [u16],
+    pub prev_min: u16,
+    pub p2: u16,
+}
+
+/// One SGM step for `N` paths at one pixel (Hirschmüller 2008, eq. 13):
+/// `out[k] = cost[k] + min(prev[k], prev[k±1] + P1, prev_min + P2) - prev_min` for each path;
+/// writes the padded `out` vectors (entries `1..=lanes`), adds the `N` path costs of the first
+/// `sum.len()` disparities into `sum` (or stores them when `accumulate` is false) and returns
+/// each path's minimum.
+///
+/// `cost.len()` is the padded lane count (a multiple of [`LANES`]); `prev` and `out` have
+/// `cost.len() + 2` entries; `sum.len() <= cost.len()`.
+#[inline(always)]
+pub(crate) fn path_step<const N: usize>(
+    level: Level,
+    cost: &[u16],
+    p1: u16,
+    ins: [PathIn<'_>; N],
+    outs: [&mut [u16]; N],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> [u16; N] {
+    let lanes = cost.len();
+    assert!(lanes.is_multiple_of(LANES) && sum.len() <= lanes);
+    for i in 0..N {
+        assert!(ins[i].prev.len() == lanes + 2 && outs[i].len() == lanes + 2);
+    }
+    match level {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Level::Avx512` is only chosen when the CPU has AVX-512F/BW/VL, and the lengths
+        // the kernel reads and writes were checked above.
+        Level::Avx512 => unsafe { x86::path_step_avx512(cost, p1, ins, outs, sum, accumulate) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Level::Avx2` is only chosen when the CPU has AVX2; lengths checked above.
+        Level::Avx2 => unsafe { x86::path_step_avx2(cost, p1, ins, outs, sum, accumulate) },
+        _ => path_step_scalar(cost, p1, ins, outs, sum, accumulate),
+    }
+}
+
+/// The readable reference of [`path_step`].
+pub(crate) fn path_step_scalar<const N: usize>(
+    cost: &[u16],
+    p1: u16,
+    ins: [PathIn<'_>; N],
+    outs: [&mut [u16]; N],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> [u16; N] {
+    let mut mins = [u16::MAX; N];
+    let nd = sum.len();
+    for (i, out) in outs.into_iter().enumerate() {
+        let PathIn { prev, prev_min, p2 } = ins[i];
+        let jump = prev_min.saturating_add(p2);
+        let (prev, out) = (&prev[..cost.len() + 2], &mut out[1..=cost.len()]);
+        for (k, (&c, o)) in cost.iter().zip(out.iter_mut()).enumerate() {
+            let best =
+                prev[k + 1].min(prev[k].saturating_add(p1)).min(prev[k + 2].saturating_add(p1)).min(jump);
+            *o = c.saturating_add(best).wrapping_sub(prev_min);
+        }
+        mins[i] = out.iter().copied().fold(u16::MAX, u16::min);
+        for (s, &v) in sum.iter_mut().zip(&out[..nd]) {
+            *s = if i == 0 && !accumulate { v } else { s.wrapping_add(v) };
+        }
+    }
+    mins
+}
+
+/// Hamming matching costs of one row, `lanes` entries per pixel (`out.len() == width * lanes`):
+/// `out[x][k] = popcount(left[x] ^ right[x - min_disparity - k])` for the disparities `k < nd`
+/// whose right pixel is inside the row, `worst` for the other disparities below `nd`, and
+/// [`JUNK_COST`] for `nd <= k < lanes`.
+pub(crate) fn cost_row(
+    features: Features,
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    out: &mut [u16],
+) {
+    assert_eq!(left.len(), right.len());
+    assert!(nd > 0 && out.len() == left.len() * padded_lanes(nd));
+    #[cfg(target_arch = "x86_64")]
+    if features.vpopcnt {
+        // SAFETY: `vpopcnt` is only set when the CPU has AVX-512F/BW/VL and VPOPCNTDQ; lengths were
+        // checked above.
+        unsafe { x86::cost_row_avx512(left, right, min_disparity, nd, worst, out) };
+        return;
+    }
+    #[cfg(target_arch = "x86_64")]
+    if features.level >= Level::Avx2 {
+        // SAFETY: AVX2 (which implies POPCNT on every CPU that has it) was detected.
+        unsafe { x86::cost_row_avx2(left, right, min_disparity, nd, worst, out) };
+        return;
+    }
+    cost_row_scalar(left, right, min_disparity, nd, worst, out)
+}
+
+/// The readable reference of [`cost_row`].
+#[inline(always)]
+pub(crate) fn cost_row_scalar(
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    out: &mut [u16],
+) {
+    let width = left.len();
+    let lanes = padded_lanes(nd);
+    for (x, costs) in out.chunks_exact_mut(lanes).enumerate() {
+        let l = left[x];
+        // Disparity index k has its right pixel at x - min - k: inside the row for k in ks.
+        let first = x as i64 - min_disparity as i64;
+        let hi = (first + 1).clamp(0, nd as i64) as usize;
+        let lo = (first - (width as i64 - 1)).clamp(0, hi as i64) as usize;
+        costs[..lo].fill(worst);
+        for (k, c) in costs[lo..hi].iter_mut().enumerate() {
+            let xr = (first - (lo + k) as i64) as usize;
+            *c = (l ^ right[xr]).count_ones() as u16;
+        }
+        costs[hi..nd].fill(worst);
+        costs[nd..].fill(JUNK_COST);
+    }
+}
+
+/// The smallest value of a non-empty `values` and the index of its first occurrence.
+#[inline(always)]
+pub(crate) fn argmin(level: Level, values: &[u16]) -> (u16, usize) {
+    assert!(!values.is_empty());
+    match level {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Level::Avx512` is only chosen when the CPU has AVX-512F/BW/VL.
+        Level::Avx512 => unsafe { x86::argmin_avx512(values) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Level::Avx2` is only chosen when the CPU has AVX2.
+        Level::Avx2 => unsafe { x86::argmin_avx2(values) },
+        _ => argmin_scalar(values),
+    }
+}
+
+/// The readable reference of [`argmin`].
+pub(crate) fn argmin_scalar(values: &[u16]) -> (u16, usize) {
+    let mut best = 0;
+    for (k, &v) in values.iter().enumerate() {
+        if v < values[best] {
+            best = k;
+        }
+    }
+    (values[best], best)
+}
+
+/// Right-view winner-takes-all update: for each `j`, if `costs[j] < best[j]` then
+/// `best[j] = costs[j]` and `index[j] = first_index + j` (so among equal costs the earliest
+/// update stays). All three slices have the same length.
+#[inline(always)]
+pub(crate) fn keep_smaller(
+    level: Level,
+    costs: &[u16],
+    first_index: u16,
+    best: &mut [u16],
+    index: &mut [u16],
+) {
+    assert!(best.len() == costs.len() && index.len() == costs.len());
+    assert!(costs.len() + usize::from(first_index) <= usize::from(u16::MAX));
+    match level {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Level::Avx512` is only chosen when the CPU has AVX-512F/BW/VL; lengths checked.
+        Level::Avx512 => unsafe { x86::keep_smaller_avx512(costs, first_index, best, index) },
+        _ => keep_smaller_scalar(costs, first_index, best, index),
+    }
+}
+
+/// The readable reference of [`keep_smaller`].
+pub(crate) fn keep_smaller_scalar(costs: &[u16], first_index: u16, best: &mut [u16], index: &mut [u16]) {
+    for (j, ((&c, b), i)) in costs.iter().zip(best.iter_mut()).zip(index.iter_mut()).enumerate() {
+        if c < *b {
+            *b = c;
+            *i = first_index + j as u16;
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use std::arch::x86_64::*;
+
+    use super::{cost_row_scalar, padded_lanes, PathIn, JUNK_COST};
+
+    /// Minimum of the 32 unsigned 16-bit lanes.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
+    fn hmin_epu16_512(v: __m512i) -> u16 {
+        let m = _mm256_min_epu16(_mm512_castsi512_si256(v), _mm512_extracti64x4_epi64::<1>(v));
+        let m = _mm_min_epu16(_mm256_castsi256_si128(m), _mm256_extracti128_si256::<1>(m));
+        _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u16
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn hmin_epu16_256(v: __m256i) -> u16 {
+        let m = _mm_min_epu16(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
+        _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u16
+    }
+
+    /// AVX-512BW [`super::path_step`]: 32 disparities per instruction (and a 16-lane step when
+    /// the padded count is an odd multiple of 16).
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F/BW/VL; lengths as checked by [`super::path_step`].
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
+    pub(super) unsafe fn path_step_avx512<const N: usize>(
+        cost: &[u16],
+        p1: u16,
+        ins: [PathIn<'_>; N],
+        outs: [&mut [u16]; N],
+        sum: &mut [u16],
+        accumulate: bool,
+    ) -> [u16; N] {
+        let lanes = cost.len();
+        let nd = sum.len();
+        let p1v = _mm512_set1_epi16(p1 as i16);
+        let prev: [*const u16; N] = std::array::from_fn(|i| ins[i].prev.as_ptr());
+        let out: [*mut u16; N] = {
+            let mut outs = outs;
+            std::array::from_fn(|i| outs[i].as_mut_ptr())
+        };
+        let jump: [__m512i; N] =
+            std::array::from_fn(|i| _mm512_set1_epi16(ins[i].prev_min.saturating_add(ins[i].p2) as i16));
+        let pmin: [__m512i; N] = std::array::from_fn(|i| _mm512_set1_epi16(ins[i].prev_min as i16));
+        let mut mins = [_mm512_set1_epi16(-1); N];
+        let mut k = 0;
+        while k + 32 <= lanes {
+            // SAFETY (all pointer accesses below): `k + 32 <= lanes`, `prev`/`out` have
+            // `lanes + 2` entries so offsets `k..k + 34` are in bounds, and the `sum` accesses are
+            // masked to the lanes below `nd = sum.len()`.
+            let c = _mm512_loadu_si512(cost.as_ptr().add(k).cast());
+            let mut total = _mm512_setzero_si512();
+            for i in 0..N {
+                let l = _mm512_loadu_si512(prev[i].add(k).cast());
+                let m = _mm512_loadu_si512(prev[i].add(k + 1).cast());
+                let r = _mm512_loadu_si512(prev[i].add(k + 2).cast());
+                let near = _mm512_adds_epu16(_mm512_min_epu16(l, r), p1v);
+                let best = _mm512_min_epu16(_mm512_min_epu16(m, near), jump[i]);
+                let v = _mm512_sub_epi16(_mm512_adds_epu16(c, best), pmin[i]);
+                _mm512_storeu_si512(out[i].add(k + 1).cast(), v);
+                mins[i] = _mm512_min_epu16(mins[i], v);
+                total = _mm512_add_epi16(total, v);
+            }
+            if k < nd {
+                let mask: __mmask32 = if nd - k >= 32 { !0 } else { (1u32 << (nd - k)) - 1 };
+                let dst = sum.as_mut_ptr().add(k);
+                if accumulate {
+                    total = _mm512_add_epi16(total, _mm512_maskz_loadu_epi16(mask, dst.cast()));
+                }
+                _mm512_mask_storeu_epi16(dst.cast(), mask, total);
+            }
+            k += 32;
+        }
+        let mut result: [u16; N] = std::array::from_fn(|i| hmin_epu16_512(mins[i]));
+        if k < lanes {
+            // The last 16 lanes, with 256-bit registers.
+            // SAFETY: `k + 16 == lanes`; the same bounds as above.
+            let p1v = _mm512_castsi512_si256(p1v);
+            let c = _mm256_loadu_si256(cost.as_ptr().add(k).cast());
+            let mut total = _mm256_setzero_si256();
+            for i in 0..N {
+                let l = _mm256_loadu_si256(prev[i].add(k).cast());
+                let m = _mm256_loadu_si256(prev[i].add(k + 1).cast());
+                let r = _mm256_loadu_si256(prev[i].add(k + 2).cast());
+                let near = _mm256_adds_epu16(_mm256_min_epu16(l, r), p1v);
+                let best = _mm256_min_epu16(_mm256_min_epu16(m, near), _mm512_castsi512_si256(jump[i]));
+                let v = _mm256_sub_epi16(_mm256_adds_epu16(c, best), _mm512_castsi512_si256(pmin[i]));
+                _mm256_storeu_si256(out[i].add(k + 1).cast(), v);
+                result[i] = result[i].min(hmin_epu16_256(v));
+                total = _mm256_add_epi16(total, v);
+            }
+            if k < nd {
+                let mask: __mmask16 = if nd - k >= 16 { !0 } else { (1u16 << (nd - k)) - 1 };
+                let dst = sum.as_mut_ptr().add(k);
+                if accumulate {
+                    total = _mm256_add_epi16(total, _mm256_maskz_loadu_epi16(mask, dst.cast()));
+                }
+                _mm256_mask_storeu_epi16(dst.cast(), mask, total);
+            }
+        }
+        result
+    }
+
+    /// AVX2 [`super::path_step`]: 16 disparities per instruction.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2; lengths as checked by [`super::path_step`].
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn path_step_avx2<const N: usize>(
+        cost: &[u16],
+        p1: u16,
+        ins: [PathIn<'_>; N],
+        outs: [&mut [u16]; N],
+        sum: &mut [u16],
+        accumulate: bool,
+    ) -> [u16; N] {
+        let lanes = cost.len();
+        let nd = sum.len();
+        let p1v = _mm256_set1_epi16(p1 as i16);
+        let prev: [*const u16; N] = std::array::from_fn(|i| ins[i].prev.as_ptr());
+        let out: [*mut u16; N] = {
+            let mut outs = outs;
+            std::array::from_fn(|i| outs[i].as_mut_ptr())
+        };
+        let jump: [__m256i; N] =
+            std::array::from_fn(|i| _mm256_set1_epi16(ins[i].prev_min.saturating_add(ins[i].p2) as i16));
+        let pmin: [__m256i; N] = std::array::from_fn(|i| _mm256_set1_epi16(ins[i].prev_min as i16));
+        let mut mins = [_mm256_set1_epi16(-1); N];
+        let mut k = 0;
+        while k < lanes {
+            // SAFETY (pointer accesses below): `k + 16 <= lanes` (lanes is a multiple of 32),
+            // `prev`/`out` have `lanes + 2` entries, and `sum` is written only below `nd`.
+            let c = _mm256_loadu_si256(cost.as_ptr().add(k).cast());
+            let mut total = _mm256_setzero_si256();
+            for i in 0..N {
+                let l = _mm256_loadu_si256(prev[i].add(k).cast());
+                let m = _mm256_loadu_si256(prev[i].add(k + 1).cast());
+                let r = _mm256_loadu_si256(prev[i].add(k + 2).cast());
+                let near = _mm256_adds_epu16(_mm256_min_epu16(l, r), p1v);
+                let best = _mm256_min_epu16(_mm256_min_epu16(m, near), jump[i]);
+                let v = _mm256_sub_epi16(_mm256_adds_epu16(c, best), pmin[i]);
+                _mm256_storeu_si256(out[i].add(k + 1).cast(), v);
+                mins[i] = _mm256_min_epu16(mins[i], v);
+                total = _mm256_add_epi16(total, v);
+            }
+            if k + 16 <= nd {
+                let dst = sum.as_mut_ptr().add(k);
+                if accumulate {
+                    total = _mm256_add_epi16(total, _mm256_loadu_si256(dst.cast()));
+                }
+                _mm256_storeu_si256(dst.cast(), total);
+            } else if k < nd {
+                let mut tmp = [0u16; 16];
+                _mm256_storeu_si256(tmp.as_mut_ptr().cast(), total);
+                for (j, &t) in tmp[..nd - k].iter().enumerate() {
+                    let d = &mut sum[k + j];
+                    *d = if accumulate { d.wrapping_add(t) } else { t };
+                }
+            }
+            k += 16;
+        }
+        std::array::from_fn(|i| hmin_epu16_256(mins[i]))
+    }
+
+    /// AVX-512BW [`super::argmin`].
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F/BW/VL; `values` is not empty.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
+    pub(super) unsafe fn argmin_avx512(values: &[u16]) -> (u16, usize) {
+        let n = values.len();
+        let p = values.as_ptr();
+        let ones = _mm512_set1_epi16(-1);
+        let mut m = ones;
+        let mut k = 0;
+        while k < n {
+            let mask: __mmask32 = if n - k >= 32 { !0 } else { (1u32 << (n - k)) - 1 };
+            // SAFETY: the masked load reads only `values[k..n]`.
+            m = _mm512_min_epu16(m, _mm512_mask_loadu_epi16(ones, mask, p.add(k).cast()));
+            k += 32;
+        }
+        let min = hmin_epu16_512(m);
+        let mv = _mm512_set1_epi16(min as i16);
+        let mut k = 0;
+        loop {
+            let mask: __mmask32 = if n - k >= 32 { !0 } else { (1u32 << (n - k)) - 1 };
+            // SAFETY: as above; the minimum occurs in `values`, so the loop ends before `k >= n`.
+            let v = _mm512_mask_loadu_epi16(ones, mask, p.add(k).cast());
+            let hit = _mm512_mask_cmpeq_epu16_mask(mask, v, mv);
+            if hit != 0 {
+                return (min, k + hit.trailing_zeros() as usize);
+            }
+            k += 32;
+        }
+    }
+
+    /// AVX2 [`super::argmin`].
+    ///
+    /// # Safety
+    /// The CPU must have AVX2; `values` is not empty.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn argmin_avx2(values: &[u16]) -> (u16, usize) {
+        let n = values.len();
+        let p = values.as_ptr();
+        let mut m = _mm256_set1_epi16(-1);
+        let mut k = 0;
+        while k + 16 <= n {
+            // SAFETY: `k + 16 <= n`.
+            m = _mm256_min_epu16(m, _mm256_loadu_si256(p.add(k).cast()));
+            k += 16;
+        }
+        let mut min = hmin_epu16_256(m);
+        for &v in &values[k..] {
+            min = min.min(v);
+        }
+        let mv = _mm256_set1_epi16(min as i16);
+        let mut k = 0;
+        while k + 16 <= n {
+            // SAFETY: `k + 16 <= n`.
+            let eq = _mm256_cmpeq_epi16(_mm256_loadu_si256(p.add(k).cast()), mv);
+            let bits = _mm256_movemask_epi8(eq) as u32;
+            if bits != 0 {
+                return (min, k + bits.trailing_zeros() as usize / 2);
+            }
+            k += 16;
+        }
+        (min, k + values[k..].iter().position(|&v| v == min).unwrap_or(0))
+    }
+
+    /// AVX-512BW [`super::keep_smaller`].
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F/BW/VL; lengths as checked by [`super::keep_smaller`].
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
+    pub(super) unsafe fn keep_smaller_avx512(
+        costs: &[u16],
+        first_index: u16,
+        best: &mut [u16],
+        index: &mut [u16],
+    ) {
+        let n = costs.len();
+        let iota = _mm512_set_epi16(
+            31, 30, 29, 28, 27, 26, 25, 24, 23, 22, 21, 20, 19, 18, 17, 16, 15, 14, 13, 12, 11, 10, 9, 8, 7,
+            6, 5, 4, 3, 2, 1, 0,
+        );
+        let mut k = 0;
+        while k < n {
+            let mask: __mmask32 = if n - k >= 32 { !0 } else { (1u32 << (n - k)) - 1 };
+            // SAFETY: every access is masked to entries `k..n` of slices of length `n`.
+            let c = _mm512_maskz_loadu_epi16(mask, costs.as_ptr().add(k).cast());
+            let b = _mm512_maskz_loadu_epi16(mask, best.as_ptr().add(k).cast());
+            let better = _mm512_mask_cmplt_epu16_mask(mask, c, b);
+            let ks = _mm512_add_epi16(iota, _mm512_set1_epi16((usize::from(first_index) + k) as i16));
+            _mm512_mask_storeu_epi16(best.as_mut_ptr().add(k).cast(), better, c);
+            _mm512_mask_storeu_epi16(index.as_mut_ptr().add(k).cast(), better, ks);
+            k += 32;
+        }
+    }
+
+    /// AVX-512 VPOPCNTQ [`super::cost_row`]: 8 Hamming distances per instruction for the pixels
+    /// whose disparities all fall inside the right row; the scalar reference for the others.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F/BW/VL and VPOPCNTDQ; lengths as checked by [`super::cost_row`].
+    #[target_feature(enable = "avx512f,avx512bw,avx512vpopcntdq")]
+    pub(super) unsafe fn cost_row_avx512(
+        left: &[u64],
+        right: &[u64],
+        min_disparity: i32,
+        nd: usize,
+        worst: u16,
+        out: &mut [u16],
+    ) {
+        let width = left.len() as i64;
+        let lanes = padded_lanes(nd);
+        let min = min_disparity as i64;
+        // Pixels whose right matches x - min - k, k in 0..nd, are all inside 0..width.
+        let x_lo = (min + nd as i64 - 1).clamp(0, width) as usize;
+        let x_hi = (width + min).clamp(x_lo as i64, width) as usize;
+        let junk = _mm512_set1_epi16(JUNK_COST as i16);
+        let reverse = _mm512_set_epi64(0, 1, 2, 3, 4, 5, 6, 7);
+        #[allow(clippy::needless_range_loop)] // x also addresses `right` and `out`
+        for x in x_lo..x_hi {
+            let l = _mm512_set1_epi64(left[x] as i64);
+            let first = (x as i64 - min) as usize;
+            let dst = out.as_mut_ptr().add(x * lanes);
+            let mut k = 0;
+            while k + 8 <= nd {
+                // SAFETY: the load covers right[first - k - 7 ..= first - k], inside the row since
+                // `first - (nd - 1) >= 0` and `first <= width - 1` for `x_lo <= x < x_hi`; the store
+                // covers entries `k..k + 8` of this pixel's `lanes`.
+                let r = _mm512_loadu_si512(right.as_ptr().add(first - k - 7).cast());
+                let r = _mm512_permutexvar_epi64(reverse, r);
+                let d = _mm512_popcnt_epi64(_mm512_xor_si512(l, r));
+                _mm_storeu_si128(dst.add(k).cast(), _mm512_cvtepi64_epi16(d));
+                k += 8;
+            }
+            for k in k..nd {
+                // SAFETY: as above, one lane at a time.
+                *dst.add(k) = (left[x] ^ *right.get_unchecked(first - k)).count_ones() as u16;
+            }
+            let mut k = nd;
+            while k < lanes {
+                let n = (lanes - k).min(32);
+                // SAFETY: `k + n <= lanes`, inside this pixel's entries.
+                _mm512_mask_storeu_epi16(dst.add(k).cast(), ((1u64 << n) - 1) as __mmask32, junk);
+                k += n;
+            }
+        }
+        // The borders, where some disparities point outside the right row: masked loads, and the
+        // worst cost blended into the lanes whose right pixel is missing.
+        let iota = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
+        let worst64 = _mm512_set1_epi64(i64::from(worst));
+        let junk64 = _mm512_set1_epi64(i64::from(JUNK_COST));
+        let w64 = _mm512_set1_epi64(width);
+        for x in (0..x_lo).chain(x_hi..left.len()) {
+            let l = _mm512_set1_epi64(left[x] as i64);
+            let first = x as i64 - min;
+            let dst = out.as_mut_ptr().add(x * lanes);
+            let mut k = 0;
+            while k < lanes {
+                // Lane j is disparity index k + j, right pixel first - k - j; loaded lane i holds
+                // right[first - k - 7 + i] (reversed below).
+                let xr = _mm512_sub_epi64(_mm512_set1_epi64(first - k as i64), iota);
+                let inside =
+                    _mm512_cmpge_epi64_mask(xr, _mm512_setzero_si512()) & _mm512_cmplt_epi64_mask(xr, w64);
+                let addr = _mm512_add_epi64(_mm512_set1_epi64(first - k as i64 - 7), iota);
+                let load = _mm512_cmpge_epi64_mask(addr, _mm512_setzero_si512())
+                    & _mm512_cmplt_epi64_mask(addr, w64);
+                // SAFETY: the masked load touches only the lanes whose address is inside `right`;
+                // the pointer is formed with wrapping arithmetic and never dereferenced elsewhere.
+                let r = _mm512_maskz_loadu_epi64(
+                    load,
+                    right.as_ptr().wrapping_offset(first as isize - k as isize - 7).cast(),
+                );
+                let r = _mm512_permutexvar_epi64(reverse, r);
+                let d = _mm512_popcnt_epi64(_mm512_xor_si512(l, r));
+                let d = _mm512_mask_mov_epi64(worst64, inside, d);
+                let real: __mmask8 = if k >= nd {
+                    0
+                } else if nd - k >= 8 {
+                    !0
+                } else {
+                    (1u8 << (nd - k)) - 1
+                };
+                let d = _mm512_mask_mov_epi64(junk64, real, d);
+                // SAFETY: `k + 8 <= lanes`, inside this pixel's entries.
+                _mm_storeu_si128(dst.add(k).cast(), _mm512_cvtepi64_epi16(d));
+                k += 8;
+            }
+        }
+    }
+
+    /// [`super::cost_row`] for AVX2 machines: the scalar reference compiled with POPCNT.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2 and POPCNT.
+    #[target_feature(enable = "avx2,popcnt")]
+    pub(super) unsafe fn cost_row_avx2(
+        left: &[u64],
+        right: &[u64],
+        min_disparity: i32,
+        nd: usize,
+        worst: u16,
+        out: &mut [u16],
+    ) {
+        cost_row_scalar(left, right, min_disparity, nd, worst, out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    #[allow(clippy::type_complexity)]
+    fn path_case() -> impl Strategy<Value = (usize, usize, u16, Vec<(Vec<u16>, u16, u16)>, Vec<u16>, bool)> {
+        (1usize..=100, 0usize..4).prop_flat_map(|(nd, extra)| {
+            let lanes = padded_lanes(nd);
+            let nd_sum = nd.saturating_sub(extra).max(1);
+            (
+                Just(nd),
+                Just(nd_sum),
+                1u16..200,
+                prop::collection::vec(
+                    (prop::collection::vec(0u16..9000, lanes + 2), 0u16..4100, 1u16..4000),
+                    4,
+                ),
+                prop::collection::vec(0u16..8000, nd_sum),
+                any::<bool>(),
+            )
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+
+        #[test]
+        fn path_step_kernels_match_the_scalar_reference((nd, _nd_sum, p1, paths, sum0, acc) in path_case(),
+                                                        costs in prop::collection::vec(0u16..=64, 128)) {
+            let lanes = padded_lanes(nd);
+            let mut cost = costs[..lanes].to_vec();
+            cost[nd..].fill(JUNK_COST);
+            let ins: [PathIn; 4] = std::array::from_fn(|i| PathIn { prev: &paths[i].0, prev_min: paths[i].1, p2: paths[i].2 });
+            let run = |level: Level| {
+                let mut outs = vec![vec![PAD; lanes + 2]; 4];
+                let mut sum = sum0.clone();
+                let [a, b, c, d] = &mut outs[..] else { unreachable!() };
+                let mins = path_step(level, &cost, p1, ins, [&mut a[..], &mut b[..], &mut c[..], &mut d[..]], &mut sum, acc);
+                let two = {
+                    let mut o2 = vec![vec![PAD; lanes + 2]; 2];
+                    let mut s2 = sum0.clone();
+                    let [e, f] = &mut o2[..] else { unreachable!() };
+                    let m = path_step(level, &cost, p1, [ins[0], ins[1]], [&mut e[..], &mut f[..]], &mut s2, acc);
+                    (o2, s2, m)
+                };
+                (outs, sum, mins, two)
+            };
+            let reference = run(Level::Scalar);
+            for level in supported_levels() {
+                prop_assert_eq!(&run(level), &reference, "{:?}", level);
+            }
+        }
+
+        #[test]
+        fn cost_row_kernels_match_the_scalar_reference(width in 1usize..120, nd_frac in 0.0f64..1.0,
+                                                       min in -40i32..40, seed in any::<u64>(), worst in 9u16..=64) {
+            let nd = ((width as f64 * nd_frac) as usize).max(1);
+            let mut s = seed | 1;
+            let mut next = || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s };
+            let left: Vec<u64> = (0..width).map(|_| next()).collect();
+            let right: Vec<u64> = (0..width).map(|_| next()).collect();
+            let lanes = padded_lanes(nd);
+            let mut reference = vec![0u16; width * lanes];
+            cost_row_scalar(&left, &right, min, nd, worst, &mut reference);
+            let top = features();
+            for level in supported_levels() {
+                let f = Features { level, vpopcnt: top.vpopcnt && level == Level::Avx512 };
+                let mut out = vec![1u16; width * lanes];
+                cost_row(f, &left, &right, min, nd, worst, &mut out);
+                prop_assert_eq!(&out, &reference, "{:?}", f);
+            }
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn argmin_kernels_match_the_scalar_reference(values in prop::collection::vec(0u16..40, 1..150),
+                                                     big in any::<bool>()) {
+            let values: Vec<u16> = values.iter().map(|&v| if big { v.wrapping_mul(1700) } else { v }).collect();
+            for level in supported_levels() {
+                prop_assert_eq!(argmin(level, &values), argmin_scalar(&values), "{:?}", level);
+            }
+        }
+
+        #[test]
+        fn keep_smaller_kernels_match_the_scalar_reference(rows in prop::collection::vec((0u16..30, 0u16..30, 0u16..500), 1..150),
+                                                           first in 0u16..1000) {
+            let costs: Vec<u16> = rows.iter().map(|r| r.0).collect();
+            let best: Vec<u16> = rows.iter().map(|r| r.1).collect();
+            let index: Vec<u16> = rows.iter().map(|r| r.2).collect();
+            let (mut b0, mut i0) = (best.clone(), index.clone());
+            keep_smaller_scalar(&costs, first, &mut b0, &mut i0);
+            for level in supported_levels() {
+                let (mut b, mut i) = (best.clone(), index.clone());
+                keep_smaller(level, &costs, first, &mut b, &mut i);
+                prop_assert_eq!((&b, &i), (&b0, &i0), "{:?}", level);
+            }
+        }
+    }
+
+    #[test]
+    fn a_start_from_zero_returns_the_cost() {
+        let nd = 40;
+        let lanes = padded_lanes(nd);
+        let mut cost: Vec<u16> = (0..lanes as u16).map(|k| k % 61).collect();
+        cost[nd..].fill(JUNK_COST);
+        let zero = vec![0u16; lanes + 2];
+        for level in supported_levels() {
+            let mut out = vec![PAD; lanes + 2];
+            let mut sum = vec![0u16; nd];
+            let [m] = path_step(
+                level,
+                &cost,
+                10,
+                [PathIn { prev: &zero, prev_min: 0, p2: 80 }],
+                [&mut out[..]],
+                &mut sum,
+                false,
+            );
+            assert_eq!(&out[1..=lanes], &cost[..]);
+            assert_eq!(&sum[..], &cost[..nd]);
+            assert_eq!(m, 0);
+        }
+    }
+}

@@ -1,0 +1,87 @@
+//! The SGM stages one at a time, for the `matchers` benchmark (not a stable API).
+//!
+//! [`sgm`](crate::sgm) runs them fused; these entry points run each over a whole image so its
+//! throughput can be measured alone.
+
+use crate::aggregate::{aggregate_and_select, Inputs, P2Table};
+use crate::cost::infeasible_cost;
+use crate::simd::{self, padded_lanes};
+use crate::wta::Selection;
+use crate::{DisparityMap, GrayImage, Image, SgmParams};
+
+/// Census transform of one image with the window of `params`.
+pub fn census(image: &GrayImage, params: &SgmParams) -> Image<u64> {
+    let mut out = Image::new(image.width(), image.height(), 0u64);
+    crate::census::census_transform(image, params.census, &mut out);
+    out
+}
+
+/// Hamming costs of every row (as the aggregation computes them, once per pass); returns a
+/// checksum so the work cannot be optimised away.
+pub fn hamming_costs(census_left: &Image<u64>, census_right: &Image<u64>, params: &SgmParams) -> u64 {
+    let nd = params.range.count();
+    let worst = infeasible_cost((params.census.width * params.census.height - 1) as u32);
+    let mut row = vec![0u16; census_left.width() * padded_lanes(nd)];
+    let mut check = 0u64;
+    for y in 0..census_left.height() {
+        simd::cost_row(
+            simd::features(),
+            census_left.row(y),
+            census_right.row(y),
+            params.range.min,
+            nd,
+            worst,
+            &mut row,
+        );
+        check = check.wrapping_add(u64::from(row[y % row.len()]));
+    }
+    check
+}
+
+/// Path aggregation (with the costs computed on the fly) and winner-takes-all with the checks,
+/// without the median: `sgm` minus census and post-filter.
+pub fn aggregate_and_select_disparities(
+    left: &GrayImage,
+    census_left: &Image<u64>,
+    census_right: &Image<u64>,
+    params: &SgmParams,
+) -> DisparityMap {
+    let (width, height) = left.size();
+    let nd = params.range.count();
+    let mut sum = crate::buffer::take_volume(width * height * nd);
+    let mut disparity = DisparityMap::new(width, height, f32::NAN);
+    let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
+    let inputs = Inputs {
+        image: left,
+        census_left,
+        census_right,
+        range: params.range,
+        worst: infeasible_cost((params.census.width * params.census.height - 1) as u32),
+        paths: params.paths,
+        p1: params.p1,
+        p2: &p2,
+        selection: Selection {
+            range: params.range,
+            uniqueness_ratio: params.uniqueness_ratio,
+            lr_max_diff: params.lr_max_diff,
+            subpixel: params.subpixel,
+        },
+    };
+    aggregate_and_select(&inputs, &mut sum.as_mut_slice()[..width * height * nd], disparity.as_mut_slice());
+    crate::buffer::give_back_volume(sum);
+    disparity
+}
+
+/// The 3×3 median post-filter.
+pub fn median(disparity: &DisparityMap) -> DisparityMap {
+    crate::filter::median_3x3(disparity)
+}
+
+/// The instruction set the kernels run with on this machine (`STEREO_DISPARITY_SIMD` caps it).
+pub fn simd_level() -> &'static str {
+    match simd::features().level {
+        simd::Level::Scalar => "scalar",
+        simd::Level::Avx2 => "avx2",
+        simd::Level::Avx512 => "avx512",
+    }
+}
