@@ -10,10 +10,16 @@ const AFTER_HELP: &str = "\
 Without a subcommand, stereo-depth matches the rectified pair LEFT RIGHT and writes a metric depth \
 map: a 32-bit float OpenEXR file with one channel `Z` holding the depth in metres \
 (Z = baseline * focal / ((d + doffs) * pixel)), NaN where no trustworthy disparity was found. \
-The path written is always printed on stdout as `depth: PATH`.
+Every path written is printed on stdout as `WHAT: PATH` (depth, disparity, disparity-png, \
+depth-png, points, preview, stats). The rig is --baseline with --focal and --pixel, or with \
+--focal-px, or a Middlebury --calib file. Without any rig flag only disparity outputs can be written \
+(--disparity, --disparity-png, --preview-of disparity, --stats with null depth fields).
 
 Examples:
   stereo-depth left.png right.png --baseline 80 --focal 12 --pixel 4
+  stereo-depth im0.png im1.png --calib calib.txt --points cloud.ply --preview depth.png
+  stereo-depth left.png right.png --max-disparity 64 --disparity disp.pfm
+  stereo-depth info cloud.ply
   stereo-depth left.png right.png --baseline 80 --focal 12 --pixel 4 --max-disparity 64 \\
       -o depth.exr --disparity disp.pfm --stats stats.json
   stereo-depth eval disp.pfm disp0GT.pfm
@@ -58,14 +64,10 @@ impl Cli {
     }
 
     /// The clap command with the library defaults in the help of the pair and batch commands.
-    /// The rig flags are required by the pair command; in batch they may come from a
-    /// Middlebury `calib.txt` instead, which `config` checks per pair.
+    /// No rig flag is required by clap: `config` checks that the rig is complete (or absent, for
+    /// the pair command's disparity-only mode) and names what is missing.
     pub fn command_with_defaults() -> clap::Command {
-        with_library_defaults(Cli::command()).mut_subcommand("batch", |batch| {
-            ["baseline", "focal", "pixel"]
-                .into_iter()
-                .fold(with_library_defaults(batch), |c, id| c.mut_arg(id, |arg| arg.required(false)))
-        })
+        with_library_defaults(Cli::command()).mut_subcommand("batch", with_library_defaults)
     }
 }
 
@@ -120,6 +122,26 @@ pub enum Command {
     BatchMerge(BatchMergeArgs),
     /// Rig design calculator: distance, disparity in mm, depth resolution, field of view, table, chart.
     Calc(crate::calc::CalcArgs),
+    /// Print what a file stereo-depth writes contains: EXR, PFM, PNG, PLY or stats JSON.
+    Info(InfoArgs),
+}
+
+/// `stereo-depth info FILE`.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// A depth EXR, disparity PFM, 16-bit depth/disparity PNG, preview PNG, point cloud PLY or
+    /// stats/summary JSON.
+    #[arg(value_name = "FILE")]
+    pub file: PathBuf,
+}
+
+/// What `--preview` shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PreviewOfArg {
+    /// Depth in metres (near is red).
+    Depth,
+    /// Disparity in pixels (near is red).
+    Disparity,
 }
 
 /// The pair command: match LEFT against RIGHT and write the depth map.
@@ -155,6 +177,36 @@ pub struct PairArgs {
     #[arg(long, value_name = "PATH.json", help_heading = "Output")]
     pub stats: Option<PathBuf>,
 
+    /// Also write the valid 3-D points as a binary little-endian PLY point cloud: float x y z in
+    /// metres (camera frame of the left view: x right, y down, z forward) and uchar red green
+    /// blue from the left image.
+    #[arg(long, value_name = "PATH.ply", help_heading = "Output")]
+    pub points: Option<PathBuf>,
+
+    /// Write every N-th pixel's point in both directions (N = 2 keeps a quarter).
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..),
+          help_heading = "Output")]
+    pub points_step: u32,
+
+    /// Also write a colour preview PNG (Turbo colour map, near is red, invalid pixels black) with
+    /// a colour bar labelled with the range of the map.
+    #[arg(long, value_name = "PATH.png", help_heading = "Output")]
+    pub preview: Option<PathBuf>,
+
+    /// What --preview shows [default: depth].
+    #[arg(long, value_enum, value_name = "MAP", requires = "preview", help_heading = "Output")]
+    pub preview_of: Option<PreviewOfArg>,
+
+    /// Also write the depth as a 16-bit grey PNG in millimetres: round(Z * 1000); 0 = invalid or
+    /// deeper than 65.535 m (counted and warned about).
+    #[arg(long, value_name = "PATH.png", help_heading = "Output")]
+    pub depth_png: Option<PathBuf>,
+
+    /// Also write the disparity as a 16-bit grey PNG in the KITTI convention:
+    /// round(disparity * 256); 0 = invalid (and disparities <= 0).
+    #[arg(long, value_name = "PATH.png", help_heading = "Output")]
+    pub disparity_png: Option<PathBuf>,
+
     /// Print only the paths written, not the summary.
     #[arg(short, long, help_heading = "Output")]
     pub quiet: bool,
@@ -164,20 +216,37 @@ pub struct PairArgs {
     pub threads: Option<u16>,
 }
 
-/// The rig flags, shared by the pair and batch commands.
+/// The rig flags, shared by the pair and batch commands. The rig is the baseline and the focal
+/// length in pixels: --focal with --pixel, or --focal-px, or a Middlebury --calib file.
 #[derive(Debug, Args)]
 pub struct RigArgs {
     /// Distance between the two optical centres, in millimetres.
-    #[arg(long, value_name = "MM", required = true, allow_negative_numbers = true, help_heading = "Rig")]
+    #[arg(long, value_name = "MM", allow_negative_numbers = true, help_heading = "Rig")]
     pub baseline: Option<f64>,
 
-    /// Lens focal length, in millimetres.
-    #[arg(long, value_name = "MM", required = true, allow_negative_numbers = true, help_heading = "Rig")]
+    /// Lens focal length, in millimetres (with --pixel).
+    #[arg(long, value_name = "MM", allow_negative_numbers = true, help_heading = "Rig")]
     pub focal: Option<f64>,
 
     /// Sensor pixel pitch, in micrometres.
-    #[arg(long, value_name = "UM", required = true, allow_negative_numbers = true, help_heading = "Rig")]
+    #[arg(long, value_name = "UM", allow_negative_numbers = true, help_heading = "Rig")]
     pub pixel: Option<f64>,
+
+    /// Focal length in pixels, instead of --focal and --pixel.
+    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Rig")]
+    pub focal_px: Option<f64>,
+
+    /// Middlebury calibration file (cam0=[f 0 cx; 0 f cy; 0 0 1], doffs, baseline in mm, width,
+    /// height, ndisp): gives the focal length in pixels, the principal point, doffs, the baseline
+    /// and ndisp as --max-disparity; --baseline, --doffs, --cx/--cy and --max-disparity given too
+    /// take precedence. The images must be width x height.
+    #[arg(long, value_name = "calib.txt", help_heading = "Rig")]
+    pub calib: Option<PathBuf>,
+
+    /// Sensor width in millimetres: reports the horizontal field of view 2*atan(w / 2f) (needs
+    /// the focal length in mm: --focal, or --pixel with --focal-px or --calib).
+    #[arg(long, value_name = "MM", allow_negative_numbers = true, help_heading = "Rig")]
+    pub sensor_width: Option<f64>,
 
     /// Disparity offset between the two principal points (Middlebury's `doffs`), pixels
     /// [default: 0].
@@ -319,13 +388,15 @@ Pairs are found by walking INPUT_DIR (hidden files and OUT_DIR are skipped; imag
   SCENE/im0.EXT    + SCENE/im1.EXT         -> OUT_DIR/SCENE/im0.*  (Middlebury)
 A Middlebury SCENE/calib.txt gives the focal length (px), baseline, doffs and principal point, and \
 ndisp as --max-disparity; rig flags given on the command line take precedence. Other pairs need \
---baseline, --focal and --pixel. --pattern 'LEFT:RIGHT' replaces the layouts: each side is a file \
+--baseline and --focal with --pixel (or --focal-px); --calib FILE gives one calibration for every \
+pair, in place of the calib.txt files. --pattern 'LEFT:RIGHT' replaces the layouts: each side is a file \
 name (matched in every folder) or a path from INPUT_DIR (when it has a '/') with one {name}, e.g. \
 --pattern '{name}_a.png:{name}_b.png' -> OUT_DIR/DIR/{name}.*. Images that pair with nothing are \
 reported on stderr and in --list.
 
-Outputs per pair: STEM.depth.exr, with --disparity STEM.disparity.pfm, with --stats STEM.stats.json; \
-and OUT_DIR/summary.json and summary.csv (one row per pair: status ok/skipped/failed, error, \
+Outputs per pair: STEM.depth.exr, with --disparity STEM.disparity.pfm, with --stats STEM.stats.json, \
+with --points STEM.points.ply, with --preview STEM.preview.png, with --depth-png STEM.depth.png, with \
+--disparity-png STEM.disparity.png; and OUT_DIR/summary.json and summary.csv (one row per pair: status ok/skipped/failed, error, \
 density, median depth, timings). A pair whose requested outputs all exist is skipped unless \
 --overwrite; outputs are written atomically, so an interrupted run resumes where it stopped.
 
@@ -367,6 +438,31 @@ pub struct BatchArgs {
     /// Also write each pair's statistics as STEM.stats.json (the pair command's --stats).
     #[arg(long, help_heading = "Output")]
     pub stats: bool,
+
+    /// Also write each pair's point cloud as STEM.points.ply (the pair command's --points).
+    #[arg(long, help_heading = "Output")]
+    pub points: bool,
+
+    /// Every N-th pixel's point in both directions (with --points).
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..),
+          requires = "points", help_heading = "Output")]
+    pub points_step: u32,
+
+    /// Also write each pair's colour preview as STEM.preview.png.
+    #[arg(long, help_heading = "Output")]
+    pub preview: bool,
+
+    /// What --preview shows [default: depth].
+    #[arg(long, value_enum, value_name = "MAP", requires = "preview", help_heading = "Output")]
+    pub preview_of: Option<PreviewOfArg>,
+
+    /// Also write each pair's depth in millimetres as STEM.depth.png (16-bit, 0 = invalid).
+    #[arg(long, help_heading = "Output")]
+    pub depth_png: bool,
+
+    /// Also write each pair's KITTI-convention disparity (x 256, 16-bit) as STEM.disparity.png.
+    #[arg(long, help_heading = "Output")]
+    pub disparity_png: bool,
 
     /// Redo pairs whose outputs already exist (default: skip them).
     #[arg(long, help_heading = "Output")]

@@ -7,11 +7,13 @@ use std::path::{Path, PathBuf};
 use stereo_disparity::{BmCost, BmParams, DisparityRange, PathCount, SgmParams, Subpixel};
 use stereo_triangulation::Rig;
 
+use stereo_io::Calib;
+
 use crate::args::{
-    BatchArgs, BatchMergeArgs, BmCostArg, EvalArgs, MatchArgs, MatcherArg, PairArgs, PathsArg, RigArgs,
-    SubpixelArg,
+    BatchArgs, BatchMergeArgs, BmCostArg, EvalArgs, MatchArgs, MatcherArg, PairArgs, PathsArg, PreviewOfArg,
+    RigArgs, SubpixelArg,
 };
-use crate::discover::{Calib, Pattern, Shard};
+use crate::discover::{Pattern, Shard};
 
 /// An invalid argument: reported like clap's own errors, with exit status 2.
 #[derive(Debug)]
@@ -32,13 +34,27 @@ macro_rules! usage {
 }
 
 /// The rig as the user gave it (datasheet units), kept for the report. The focal length and
-/// pixel pitch are `None` when the focal length came in pixels from a Middlebury `calib.txt`.
+/// pixel pitch are `None` when the focal length came in pixels (--focal-px or a Middlebury
+/// `calib.txt`) without them.
 #[derive(Clone, Debug)]
 pub struct RigInput {
     pub baseline_mm: f64,
     pub focal_mm: Option<f64>,
     pub pixel_um: Option<f64>,
+    pub sensor_width_mm: Option<f64>,
+    /// Horizontal field of view `2·atan(w / 2f)`, with --sensor-width.
+    pub horizontal_fov_deg: Option<f64>,
 }
+
+/// A resolved rig: what triangulates, and what the user gave.
+#[derive(Clone, Debug)]
+pub struct RigSetup {
+    pub rig: Rig,
+    pub input: RigInput,
+}
+
+/// How to give the focal length, for error messages.
+const FOCAL_SOURCES: &str = "--focal and --pixel, --focal-px, or --calib";
 
 /// The rig flags, each checked on its own; [`RigFlags::resolve`] completes them from a
 /// Middlebury `calib.txt` (the flags take precedence) and builds the [`Rig`].
@@ -47,23 +63,60 @@ pub struct RigFlags {
     pub baseline_mm: Option<f64>,
     pub focal_mm: Option<f64>,
     pub pixel_um: Option<f64>,
+    pub focal_px: Option<f64>,
     pub doffs: Option<f64>,
     pub principal_point: Option<(f64, f64)>,
+    pub sensor_width_mm: Option<f64>,
+    /// The --calib file, read.
+    pub calib: Option<Calib>,
 }
 
 impl RigFlags {
-    pub fn from_args(args: &RigArgs) -> Result<Self, UsageError> {
+    /// Checks the flags and reads the --calib file (a file that cannot be read or parsed is a
+    /// runtime error, exit status 1; conflicting flags are usage errors).
+    pub fn from_args(args: &RigArgs) -> anyhow::Result<Self> {
+        let mut flags = RigFlags::check(args)?;
+        if let Some(path) = &args.calib {
+            flags.calib = Some(stereo_io::read_calib(path)?);
+        }
+        Ok(flags)
+    }
+
+    /// Everything but reading the --calib file.
+    fn check(args: &RigArgs) -> Result<Self, UsageError> {
         let principal_point = match (args.cx, args.cy) {
             (Some(cx), Some(cy)) => Some((cx, cy)),
             (None, None) => None,
             _ => return Err(usage!("--cx and --cy must be given together")),
         };
+        let focal_from = |flag: &str| {
+            usage!(
+                "conflicting focal lengths: {flag} and --focal-px both give it; give one of {FOCAL_SOURCES}"
+            )
+        };
+        if args.focal_px.is_some() && args.focal.is_some() {
+            return Err(focal_from("--focal"));
+        }
+        if args.calib.is_some() {
+            for (given, flag) in [(args.focal.is_some(), "--focal"), (args.focal_px.is_some(), "--focal-px")]
+            {
+                if given {
+                    return Err(usage!(
+                        "conflicting focal lengths: {flag} and --calib (its cam0 matrix) both give it; \
+                         give one of {FOCAL_SOURCES}"
+                    ));
+                }
+            }
+        }
         let flags = RigFlags {
             baseline_mm: args.baseline,
             focal_mm: args.focal,
             pixel_um: args.pixel,
+            focal_px: args.focal_px,
             doffs: args.doffs,
             principal_point,
+            sensor_width_mm: args.sensor_width,
+            calib: None,
         };
         // Every value given is checked now, with stand-ins for the others.
         let rig = Rig::from_datasheet(
@@ -73,40 +126,104 @@ impl RigFlags {
         )
         .and_then(|rig| rig.with_doffs(flags.doffs.unwrap_or(0.0)))
         .map_err(rig_error)?;
+        if let Some(px) = flags.focal_px {
+            Rig::from_focal_px(1.0, px)
+                .map_err(|_| usage!("invalid --focal-px {px} px (must be a finite number > 0 px)"))?;
+        }
         if let Some((cx, cy)) = principal_point {
             rig.with_principal_point(cx, cy).map_err(rig_error)?;
+        }
+        if let Some(w) = flags.sensor_width_mm {
+            if !(w.is_finite() && w > 0.0) {
+                return Err(usage!("invalid --sensor-width {w} mm (must be a finite number > 0 mm)"));
+            }
         }
         Ok(flags)
     }
 
-    /// Whether the flags alone define the rig (no calib.txt needed).
-    pub fn is_complete(&self) -> bool {
-        self.baseline_mm.is_some() && self.focal_mm.is_some() && self.pixel_um.is_some()
+    /// Whether any flag that describes the rig was given.
+    pub fn any(&self) -> bool {
+        self.baseline_mm.is_some()
+            || self.focal_mm.is_some()
+            || self.pixel_um.is_some()
+            || self.focal_px.is_some()
+            || self.doffs.is_some()
+            || self.principal_point.is_some()
+            || self.sensor_width_mm.is_some()
+            || self.calib.is_some()
     }
 
-    /// The rig from the flags, with whatever they leave open taken from `calib`.
-    pub fn resolve(&self, calib: Option<&Calib>) -> Result<(Rig, RigInput), UsageError> {
-        let from_calib = " (nor does a calib.txt give it)";
-        let baseline_mm = self.baseline_mm.or(calib.and_then(|c| c.baseline_mm)).ok_or_else(|| {
-            usage!("no baseline: give --baseline{}", if calib.is_some() { from_calib } else { "" })
-        })?;
-        let (rig, focal_mm, pixel_um) = match (self.focal_mm, self.pixel_um, calib) {
-            (Some(focal), Some(pixel), _) => {
-                (Rig::from_datasheet(baseline_mm, focal, pixel).map_err(rig_error)?, Some(focal), Some(pixel))
+    /// Whether the flags (with --calib) alone define the rig (no calib.txt needed).
+    pub fn is_complete(&self) -> bool {
+        self.resolve(None).is_ok()
+    }
+
+    /// The calibration in force for a pair: --calib, else the pair's own calib.txt.
+    pub fn calib<'a>(&'a self, found: Option<&'a Calib>) -> Option<&'a Calib> {
+        self.calib.as_ref().or(found)
+    }
+
+    /// The rig from the flags, with whatever they leave open taken from the calibration in force
+    /// ([`RigFlags::calib`]). An incomplete rig is an error naming every missing flag.
+    pub fn resolve(&self, found: Option<&Calib>) -> Result<RigSetup, UsageError> {
+        let calib = self.calib(found);
+        let mut missing = Vec::new();
+        let baseline_mm = self.baseline_mm.or(calib.and_then(|c| c.baseline_mm));
+        if baseline_mm.is_none() {
+            missing.push(if calib.is_some() { "--baseline (the calib.txt has none)" } else { "--baseline" });
+        }
+        let focal_px = match (self.focal_mm, self.pixel_um, self.focal_px, calib) {
+            (Some(focal), Some(pixel), _, _) => Some(focal * 1000.0 / pixel),
+            (Some(_), None, _, _) => {
+                missing.push("--pixel (to turn --focal into pixels)");
+                None
             }
-            (None, None, Some(calib)) => {
-                let rig = Rig::from_focal_px(baseline_mm, calib.focal_px)
-                    .map_err(|err| usage!("calib.txt: {err}"))?;
-                (rig, None, None)
+            (None, _, Some(px), _) => Some(px),
+            (None, _, None, Some(calib)) => Some(calib.focal_px),
+            (None, _, None, None) => {
+                missing.push("the focal length (--focal and --pixel, --focal-px, or --calib)");
+                None
             }
-            _ => return Err(usage!("no focal length: give --focal and --pixel")),
+        };
+        let (Some(baseline_mm), Some(focal_px)) = (baseline_mm, focal_px) else {
+            return Err(usage!("incomplete rig: missing {}", missing.join(" and ")));
+        };
+        let rig = match (self.focal_mm, self.pixel_um) {
+            (Some(focal), Some(pixel)) => {
+                Rig::from_datasheet(baseline_mm, focal, pixel).map_err(rig_error)?
+            }
+            _ => Rig::from_focal_px(baseline_mm, focal_px).map_err(|err| match calib {
+                Some(_) if self.focal_px.is_none() => usage!("calib.txt: {err}"),
+                _ => rig_error(err),
+            })?,
         };
         let doffs = self.doffs.or(calib.and_then(|c| c.doffs)).unwrap_or(0.0);
         let mut rig = rig.with_doffs(doffs).map_err(rig_error)?;
         if let Some((cx, cy)) = self.principal_point.or(calib.map(|c| (c.cx, c.cy))) {
             rig = rig.with_principal_point(cx, cy).map_err(rig_error)?;
         }
-        Ok((rig, RigInput { baseline_mm, focal_mm, pixel_um }))
+        // The focal length in mm, given or from the pixel pitch.
+        let focal_mm = self.focal_mm.or(self.pixel_um.map(|p| rig.focal_px * p / 1000.0));
+        let horizontal_fov_deg = match self.sensor_width_mm {
+            Some(w) => {
+                let f = focal_mm.ok_or_else(|| {
+                    usage!(
+                        "--sensor-width needs the focal length in mm: give --focal and --pixel, or --pixel \
+                         with --focal-px or --calib"
+                    )
+                })?;
+                Some(stereo_triangulation::design::horizontal_fov_deg(w, f))
+            }
+            None => None,
+        };
+        let input = RigInput {
+            baseline_mm,
+            focal_mm,
+            pixel_um: self.pixel_um,
+            sensor_width_mm: self.sensor_width_mm,
+            horizontal_fov_deg,
+        };
+        Ok(RigSetup { rig, input })
     }
 }
 
@@ -159,21 +276,35 @@ impl Matcher {
     }
 }
 
+/// What a preview shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PreviewOf {
+    Depth,
+    Disparity,
+}
+
 /// The pair command, checked.
 #[derive(Clone, Debug)]
 pub struct PairConfig {
     pub left: PathBuf,
     pub right: PathBuf,
-    pub rig_input: RigInput,
-    pub rig: Rig,
+    /// `None`: disparity-only mode (no rig flag given).
+    pub rig: Option<RigSetup>,
     pub min_disparity: i32,
     /// `None`: [`DisparityRange::default_for_width`].
     pub max_disparity: Option<i32>,
     /// The range is filled in by [`PairConfig::resolve_range`] once the width is known.
     pub matcher: Matcher,
-    pub output: PathBuf,
+    /// The depth EXR (always, with a rig).
+    pub output: Option<PathBuf>,
     pub disparity: Option<PathBuf>,
     pub stats: Option<PathBuf>,
+    pub points: Option<PathBuf>,
+    pub points_step: usize,
+    pub preview: Option<PathBuf>,
+    pub preview_of: PreviewOf,
+    pub depth_png: Option<PathBuf>,
+    pub disparity_png: Option<PathBuf>,
     pub quiet: bool,
     /// The image size the rig was calibrated for (a Middlebury calib.txt's width and height),
     /// checked against the images before matching.
@@ -181,36 +312,73 @@ pub struct PairConfig {
 }
 
 impl PairConfig {
-    pub fn from_args(args: PairArgs) -> Result<Self, UsageError> {
+    pub fn from_args(args: PairArgs) -> anyhow::Result<Self> {
+        let flags = RigFlags::from_args(&args.rig)?;
+        Ok(PairConfig::from_flags(args, flags)?)
+    }
+
+    fn from_flags(args: PairArgs, flags: RigFlags) -> Result<Self, UsageError> {
         let matcher = matcher(&args.matching)?;
         // clap enforces these for the pair command; a missing one here is a programming error
         // in `args`, reported rather than unwrapped.
         let required = |name: &str| usage!("the pair command needs {name}");
         let left = args.left.ok_or_else(|| required("LEFT"))?;
         let right = args.right.ok_or_else(|| required("RIGHT"))?;
-        args.rig.baseline.ok_or_else(|| required("--baseline"))?;
-        args.rig.focal.ok_or_else(|| required("--focal"))?;
-        args.rig.pixel.ok_or_else(|| required("--pixel"))?;
-        let (rig, rig_input) = RigFlags::from_args(&args.rig)?.resolve(None)?;
+        let rig = if flags.any() { Some(flags.resolve(None)?) } else { None };
         let settings = MatchSettings::from_args(&args.matching)?;
-
-        let output = match args.output {
-            Some(path) => path,
-            None => default_output(&left),
+        let preview_of = match args.preview_of {
+            Some(PreviewOfArg::Disparity) => PreviewOf::Disparity,
+            Some(PreviewOfArg::Depth) | None => PreviewOf::Depth,
         };
+
+        let output = if rig.is_some() {
+            Some(args.output.unwrap_or_else(|| default_output(&left)))
+        } else {
+            let give = "give --baseline and the focal length (--focal and --pixel, --focal-px, or --calib)";
+            let depth_outputs = [
+                (args.output.is_some(), "-o/--output (the depth EXR)", ""),
+                (args.depth_png.is_some(), "--depth-png", ""),
+                (args.points.is_some(), "--points", ""),
+                (
+                    args.preview.is_some() && preview_of == PreviewOf::Depth,
+                    "--preview (of depth, the default)",
+                    "; or add --preview-of disparity",
+                ),
+            ];
+            if let Some((_, flag, hint)) = depth_outputs.iter().find(|(given, ..)| *given) {
+                return Err(usage!("{flag} needs a rig: {give}{hint}"));
+            }
+            if args.disparity.is_none() && args.disparity_png.is_none() && args.preview.is_none() {
+                return Err(usage!(
+                    "nothing to write: for a depth map {give}; for the disparity alone give --disparity \
+                     PATH.pfm, --disparity-png PATH.png or --preview PATH.png --preview-of disparity"
+                ));
+            }
+            None
+        };
+        let calib = flags.calib.as_ref();
+        let max_disparity = settings.max_disparity.or_else(|| {
+            let ndisp = calib?.ndisp?;
+            Some(i32::try_from(ndisp).unwrap_or(i32::MAX))
+        });
         let config = PairConfig {
             left,
             right,
-            rig_input,
             rig,
             min_disparity: settings.min_disparity,
-            max_disparity: settings.max_disparity,
+            max_disparity,
             matcher,
             output,
             disparity: args.disparity,
             stats: args.stats,
+            points: args.points,
+            points_step: args.points_step as usize,
+            preview: args.preview,
+            preview_of,
+            depth_png: args.depth_png,
+            disparity_png: args.disparity_png,
             quiet: args.quiet,
-            expected_size: None,
+            expected_size: calib.and_then(|c| Some((c.width?, c.height?))),
         };
         config.check_paths()?;
         Ok(config)
@@ -243,16 +411,20 @@ impl PairConfig {
         Ok(range)
     }
 
-    /// Every output, in the order they are written.
+    /// Every output, in the order they are written (the names are printed as `NAME: PATH`).
     pub fn outputs(&self) -> Vec<(&'static str, &Path)> {
-        let mut outputs = vec![("depth", self.output.as_path())];
-        if let Some(path) = &self.disparity {
-            outputs.push(("disparity", path));
-        }
-        if let Some(path) = &self.stats {
-            outputs.push(("stats", path));
-        }
-        outputs
+        [
+            ("depth", &self.output),
+            ("disparity", &self.disparity),
+            ("disparity-png", &self.disparity_png),
+            ("depth-png", &self.depth_png),
+            ("points", &self.points),
+            ("preview", &self.preview),
+            ("stats", &self.stats),
+        ]
+        .into_iter()
+        .filter_map(|(what, path)| Some((what, path.as_deref()?)))
+        .collect()
     }
 
     /// Outputs must not overwrite an input or each other.
@@ -391,6 +563,12 @@ pub struct BatchConfig {
     pub matching: MatchSettings,
     pub disparity: bool,
     pub stats: bool,
+    pub points: bool,
+    pub points_step: usize,
+    pub preview: bool,
+    pub preview_of: PreviewOf,
+    pub depth_png: bool,
+    pub disparity_png: bool,
     pub overwrite: bool,
     pub quiet: bool,
     pub list: bool,
@@ -402,11 +580,11 @@ pub struct BatchConfig {
 }
 
 impl BatchConfig {
-    pub fn from_args(args: BatchArgs) -> Result<Self, UsageError> {
+    pub fn from_args(args: BatchArgs) -> anyhow::Result<Self> {
         let matching = MatchSettings::from_args(&args.matching)?;
         let rig = RigFlags::from_args(&args.rig)?;
-        if args.rig.focal.is_some() != args.rig.pixel.is_some() {
-            return Err(usage!("--focal and --pixel must be given together"));
+        if args.rig.focal.is_some() && args.rig.pixel.is_none() {
+            return Err(usage!("--focal needs --pixel (or give --focal-px)").into());
         }
         let pattern = match &args.pattern {
             Some(text) => {
@@ -427,6 +605,15 @@ impl BatchConfig {
             matching,
             disparity: args.disparity,
             stats: args.stats,
+            points: args.points,
+            points_step: args.points_step as usize,
+            preview: args.preview,
+            preview_of: match args.preview_of {
+                Some(PreviewOfArg::Disparity) => PreviewOf::Disparity,
+                Some(PreviewOfArg::Depth) | None => PreviewOf::Depth,
+            },
+            depth_png: args.depth_png,
+            disparity_png: args.disparity_png,
             overwrite: args.overwrite,
             quiet: args.quiet,
             list: args.list,
@@ -479,14 +666,21 @@ mod tests {
         let mut all = vec!["stereo-depth", "in/left.png", "in/right.png"];
         all.extend(["--baseline", "80", "--focal", "12", "--pixel", "4"]);
         all.extend(args);
-        PairConfig::from_args(Cli::try_parse_from(all).unwrap().pair)
+        bare(&all)
+    }
+
+    /// The pair command's config from the whole command line (no --calib: nothing is read).
+    fn bare(all: &[&str]) -> Result<PairConfig, UsageError> {
+        let args = Cli::try_parse_from(all).unwrap().pair;
+        let flags = RigFlags::check(&args.rig)?;
+        PairConfig::from_flags(args, flags)
     }
 
     #[test]
     fn defaults_come_from_the_libraries() {
         let config = pair(&[]).unwrap();
-        assert_eq!(config.output, PathBuf::from("left_depth.exr"));
-        assert_eq!(config.rig.focal_px, 3000.0);
+        assert_eq!(config.output, Some(PathBuf::from("left_depth.exr")));
+        assert_eq!(config.rig.as_ref().unwrap().rig.focal_px, 3000.0);
         match &config.matcher {
             Matcher::Sgm(params) => assert_eq!(*params, SgmParams::default()),
             other => panic!("{other:?}"),
@@ -526,13 +720,55 @@ mod tests {
 
     #[test]
     fn rig_errors_name_the_flag() {
-        let err = PairConfig::from_args(
-            Cli::try_parse_from(["x", "l.png", "r.png", "--baseline", "80", "--focal", "0", "--pixel", "4"])
-                .unwrap()
-                .pair,
-        )
-        .unwrap_err();
+        let err =
+            bare(&["x", "l.png", "r.png", "--baseline", "80", "--focal", "0", "--pixel", "4"]).unwrap_err();
         assert_eq!(err.0, "invalid --focal 0 mm (must be a finite number > 0 mm)");
         assert!(pair(&["--cx", "1", "--cy", "inf"]).unwrap_err().0.contains("--cy"));
+    }
+
+    #[test]
+    fn rig_sources_conflict_or_complete() {
+        let base = ["x", "l.png", "r.png"];
+        let with = |extra: &[&str]| {
+            let mut all = base.to_vec();
+            all.extend(extra);
+            bare(&all)
+        };
+        let err = with(&["--baseline", "80", "--focal", "12", "--focal-px", "3000"]).unwrap_err().0;
+        assert!(err.contains("--focal") && err.contains("--focal-px"), "{err}");
+        let err = with(&["--baseline", "80", "--disparity", "d.pfm"]).unwrap_err().0;
+        assert!(err.starts_with("incomplete rig: missing the focal length"), "{err}");
+        let err = with(&["--focal", "12", "--disparity", "d.pfm"]).unwrap_err().0;
+        assert!(err.contains("--baseline") && err.contains("--pixel"), "{err}");
+        let config = with(&["--baseline", "80", "--focal-px", "3000"]).unwrap();
+        let setup = config.rig.unwrap();
+        assert_eq!(setup.rig.focal_px, 3000.0);
+        assert_eq!(setup.input.focal_mm, None);
+        // --pixel with --focal-px gives the focal length in mm, and so the field of view.
+        let config =
+            with(&["--baseline", "80", "--focal-px", "3000", "--pixel", "4", "--sensor-width", "8"]).unwrap();
+        let input = config.rig.unwrap().input;
+        assert_eq!(input.focal_mm, Some(12.0));
+        let fov = input.horizontal_fov_deg.unwrap();
+        assert!((fov - 2.0 * (8.0f64 / 24.0).atan().to_degrees()).abs() < 1e-9, "{fov}");
+        let err = with(&["--baseline", "80", "--focal-px", "3000", "--sensor-width", "8"]).unwrap_err().0;
+        assert!(err.contains("--sensor-width"), "{err}");
+    }
+
+    #[test]
+    fn disparity_only_mode() {
+        let config = bare(&["x", "l.png", "r.png", "--disparity", "d.pfm"]).unwrap();
+        assert!(config.rig.is_none() && config.output.is_none());
+        let names: Vec<&str> = config.outputs().iter().map(|(what, _)| *what).collect();
+        assert_eq!(names, ["disparity"]);
+        for (flag, value) in
+            [("-o", "z.exr"), ("--depth-png", "z.png"), ("--points", "p.ply"), ("--preview", "p.png")]
+        {
+            let err = bare(&["x", "l.png", "r.png", "--disparity", "d.pfm", flag, value]).unwrap_err().0;
+            assert!(err.contains("needs a rig") && err.contains("--baseline"), "{err}");
+        }
+        assert!(bare(&["x", "l.png", "r.png", "--preview", "p.png", "--preview-of", "disparity"]).is_ok());
+        let err = bare(&["x", "l.png", "r.png", "--stats", "s.json"]).unwrap_err().0;
+        assert!(err.starts_with("nothing to write") && err.contains("--disparity"), "{err}");
     }
 }

@@ -10,6 +10,7 @@ mod calc;
 mod config;
 mod discover;
 mod eval_cmd;
+mod info;
 mod pair;
 mod report;
 
@@ -54,6 +55,7 @@ fn run() -> anyhow::Result<ExitCode> {
             return batch::merge(&config, &mut stdout);
         }
         Some(Command::Calc(args)) => calc::run(args, &mut stdout)?,
+        Some(Command::Info(args)) => info::run(&args.file, &mut stdout)?,
         Some(Command::Eval(args)) => {
             let config = EvalConfig::from_args(args)?;
             eval_cmd::run(&config, &mut stdout)?;

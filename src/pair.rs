@@ -10,8 +10,8 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use stereo_disparity::{block_match, sgm, DisparityMap, GrayImage};
 
-use crate::config::{Matcher, PairConfig, UsageError};
-use crate::report::{self, MatcherReport, Outputs, RigReport, Stats, Summary, Timings};
+use crate::config::{Matcher, PairConfig, PreviewOf, UsageError};
+use crate::report::{self, DepthResolution, MatcherReport, Outputs, RigReport, Stats, Summary, Timings};
 use stereo_triangulation::{DepthStats, DisparityStats};
 
 pub fn run(config: &PairConfig, out: &mut impl Write) -> Result<()> {
@@ -68,39 +68,115 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     drop((left, right));
 
     let t = Instant::now();
-    let depth = stereo_triangulation::depth_map(&disparity, &config.rig);
+    let depth = config.rig.as_ref().map(|setup| stereo_triangulation::depth_map(&disparity, &setup.rig));
     let triangulate = t.elapsed();
 
     let t = Instant::now();
     let mut written = Written::default();
-    stereo_io::write_exr(&config.output, &[("Z", &depth)]).context("cannot write the depth map")?;
-    written.0.push(&config.output);
+    let mut depth_png_too_deep = None;
+    let mut points_written = None;
+    if let (Some(path), Some(depth)) = (&config.output, &depth) {
+        stereo_io::write_exr(path, &[("Z", depth)]).context("cannot write the depth map")?;
+        written.0.push(path);
+    }
     if let Some(path) = &config.disparity {
         stereo_io::write_pfm(path, &disparity).context("cannot write the disparity map")?;
+        written.0.push(path);
+    }
+    if let Some(path) = &config.disparity_png {
+        stereo_io::write_png16(path, &stereo_io::disparity_to_kitti(&disparity))
+            .context("cannot write the disparity PNG")?;
+        written.0.push(path);
+    }
+    if let (Some(path), Some(depth)) = (&config.depth_png, &depth) {
+        let (mm, too_deep) = stereo_io::depth_to_mm(depth);
+        stereo_io::write_png16(path, &mm).context("cannot write the depth PNG")?;
+        written.0.push(path);
+        if too_deep > 0 {
+            eprintln!(
+                "stereo-depth: warning: {}: {too_deep} pixels deeper than 65.535 m written as 0 (invalid)",
+                path.display()
+            );
+        }
+        depth_png_too_deep = Some(too_deep);
+    }
+    if let (Some(path), Some(setup)) = (&config.points, &config.rig) {
+        let colour = stereo_io::load_rgb8(&config.left).context("cannot read the left image's colours")?;
+        if colour.size() != disparity.size() {
+            bail!("{} changed while it was being processed", config.left.display());
+        }
+        let vertices: Vec<stereo_io::PlyVertex> =
+            stereo_triangulation::points(&disparity, &setup.rig, config.points_step)
+                .into_iter()
+                .map(|p| stereo_io::PlyVertex {
+                    position: [p.position.x as f32, p.position.y as f32, p.position.z as f32],
+                    colour: colour.get(p.x, p.y),
+                })
+                .filter(|v| v.position.iter().all(|c| c.is_finite()))
+                .collect();
+        let rig = &setup.rig;
+        let (cx, cy) = rig.principal_point_for(width, height);
+        let comments = [
+            "stereo-depth point cloud: x y z in metres, camera frame of the left view: x right, y down, \
+             z forward (optical axis); colour from the left image"
+                .to_string(),
+            format!(
+                "rig: baseline_mm {} focal_px {} doffs {} cx {cx} cy {cy}; image {width}x{height}; step {}",
+                rig.baseline_mm, rig.focal_px, rig.doffs, config.points_step
+            ),
+            format!("left {}", config.left.display()),
+        ];
+        let comments: Vec<&str> = comments.iter().map(String::as_str).collect();
+        stereo_io::write_ply(path, &vertices, &comments).context("cannot write the point cloud")?;
+        written.0.push(path);
+        points_written = Some(vertices.len());
+    }
+    if let Some(path) = &config.preview {
+        let preview = match (config.preview_of, &depth) {
+            (PreviewOf::Depth, Some(depth)) => {
+                stereo_io::render_preview(depth, "m", stereo_io::ColourScale::SmallIsWarm)
+            }
+            _ => stereo_io::render_preview(&disparity, "px", stereo_io::ColourScale::LargeIsWarm),
+        };
+        stereo_io::write_png_rgb8(path, &preview.image).context("cannot write the preview")?;
         written.0.push(path);
     }
     let write = t.elapsed();
     let total = start.elapsed();
 
-    let depth_stats = DepthStats::from_depth(&depth);
+    let disparity_stats = DisparityStats::from_disparity(&disparity);
+    let (valid_pixels, density_percent, depth_m) = match &depth {
+        Some(depth) => {
+            let stats = DepthStats::from_depth(depth);
+            (stats.valid_pixels, stats.density_percent, Summary::of_depth(&stats))
+        }
+        None => (disparity_stats.valid_pixels, disparity_stats.density_percent, None),
+    };
     let pixels = width * height;
     let match_seconds = match_time.as_secs_f64();
     let stats = Stats {
         left: report::display(&config.left),
         right: report::display(&config.right),
         outputs: Outputs {
-            depth: report::display(&config.output),
+            depth: config.output.as_deref().map(report::display),
             disparity: config.disparity.as_deref().map(report::display),
             stats: config.stats.as_deref().map(report::display),
+            points: config.points.as_deref().map(report::display),
+            preview: config.preview.as_deref().map(report::display),
+            depth_png: config.depth_png.as_deref().map(report::display),
+            disparity_png: config.disparity_png.as_deref().map(report::display),
         },
         width,
         height,
-        valid_pixels: depth_stats.valid_pixels,
-        density_percent: depth_stats.density_percent,
-        depth_m: Summary::of_depth(&depth_stats),
-        disparity_px: Summary::of_disparity(&DisparityStats::from_disparity(&disparity)),
+        valid_pixels,
+        density_percent,
+        depth_resolution_mm: config.rig.as_ref().and_then(|s| DepthResolution::new(&s.rig, depth_m.as_ref())),
+        depth_m,
+        disparity_px: Summary::of_disparity(&disparity_stats),
         matcher: MatcherReport::new(&matcher),
-        rig: RigReport::new(config, width, height),
+        rig: config.rig.as_ref().map(|setup| RigReport::new(setup, width, height)),
+        points_written,
+        depth_png_too_deep,
         timings_ms: Timings {
             load: report::ms(load),
             match_: report::ms(match_time),

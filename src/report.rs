@@ -8,10 +8,11 @@ use serde::Serialize;
 use stereo_disparity::{BmCost, PathCount, Subpixel};
 use stereo_triangulation::{DepthStats, DisparityStats};
 
-use crate::config::{Matcher, PairConfig};
+use crate::config::{Matcher, RigSetup};
 
 /// The `--stats` document. Depths are in metres, disparities in pixels, times in milliseconds;
-/// statistics of an empty set (no valid pixel) are `null`.
+/// statistics of an empty set (no valid pixel) are `null`, and so are the depth fields and `rig`
+/// in disparity-only mode (no rig given).
 #[derive(Debug, Serialize)]
 pub struct Stats {
     pub left: String,
@@ -19,14 +20,21 @@ pub struct Stats {
     pub outputs: Outputs,
     pub width: usize,
     pub height: usize,
-    /// Pixels with a finite depth.
+    /// Pixels with a finite depth (disparity-only mode: a finite disparity).
     pub valid_pixels: usize,
     /// `valid_pixels` as a percentage of all pixels.
     pub density_percent: f64,
     pub depth_m: Option<Summary>,
+    /// The depth step of one pixel of disparity (`ΔZ ≈ Z²·1 px / (B·f_px)`) at the median and
+    /// 95th-percentile depths, millimetres.
+    pub depth_resolution_mm: Option<DepthResolution>,
     pub disparity_px: Option<Summary>,
     pub matcher: MatcherReport,
-    pub rig: RigReport,
+    pub rig: Option<RigReport>,
+    /// Points in the --points cloud.
+    pub points_written: Option<usize>,
+    /// Valid depths beyond 65.535 m written as 0 in the --depth-png.
+    pub depth_png_too_deep: Option<usize>,
     pub timings_ms: Timings,
     /// Million disparity evaluations per second of the matching stage: W·H·ndisp / seconds / 1e6.
     pub mde_per_s: f64,
@@ -34,9 +42,33 @@ pub struct Stats {
 
 #[derive(Debug, Serialize)]
 pub struct Outputs {
-    pub depth: String,
+    pub depth: Option<String>,
     pub disparity: Option<String>,
     pub stats: Option<String>,
+    pub points: Option<String>,
+    pub preview: Option<String>,
+    pub depth_png: Option<String>,
+    pub disparity_png: Option<String>,
+}
+
+#[derive(Debug, Serialize, PartialEq)]
+pub struct DepthResolution {
+    /// The disparity step, pixels.
+    pub step_px: f64,
+    pub at_median: f64,
+    pub at_p95: f64,
+}
+
+impl DepthResolution {
+    pub fn new(rig: &stereo_triangulation::Rig, depth: Option<&Summary>) -> Option<Self> {
+        let depth = depth?;
+        let step_px = 1.0;
+        Some(DepthResolution {
+            step_px,
+            at_median: rig.depth_resolution(depth.median, step_px) * 1000.0,
+            at_p95: rig.depth_resolution(depth.p95, step_px) * 1000.0,
+        })
+    }
 }
 
 /// Statistics of the valid pixels of a map (percentiles interpolate linearly, like NumPy's).
@@ -89,6 +121,9 @@ pub struct RigReport {
     pub principal_point: [f64; 2],
     /// Whether the principal point is the image centre (no --cx/--cy).
     pub principal_point_default: bool,
+    pub sensor_width_mm: Option<f64>,
+    /// Horizontal field of view `2·atan(w / 2f)` (with --sensor-width), degrees.
+    pub horizontal_fov_deg: Option<f64>,
 }
 
 #[derive(Debug, Default, Serialize)]
@@ -150,17 +185,19 @@ impl MatcherReport {
 }
 
 impl RigReport {
-    pub fn new(config: &PairConfig, width: usize, height: usize) -> Self {
-        let rig = &config.rig;
+    pub fn new(setup: &RigSetup, width: usize, height: usize) -> Self {
+        let rig = &setup.rig;
         let (cx, cy) = rig.principal_point_for(width, height);
         RigReport {
-            baseline_mm: config.rig_input.baseline_mm,
-            focal_mm: config.rig_input.focal_mm,
-            pixel_um: config.rig_input.pixel_um,
+            baseline_mm: setup.input.baseline_mm,
+            focal_mm: setup.input.focal_mm,
+            pixel_um: setup.input.pixel_um,
             focal_px: rig.focal_px,
             doffs: rig.doffs,
             principal_point: [cx, cy],
             principal_point_default: rig.principal_point.is_none(),
+            sensor_width_mm: setup.input.sensor_width_mm,
+            horizontal_fov_deg: setup.input.horizontal_fov_deg,
         }
     }
 }
@@ -201,10 +238,14 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
             ((*min_disparity, *max_disparity), format!("bm, {block_size}x{block_size} {cost}"))
         }
     };
+    let rig = match &stats.rig {
+        Some(rig) => format!("focal {:.1} px", rig.focal_px),
+        None => "no rig: disparity only".to_string(),
+    };
     writeln!(
         out,
-        "{}x{} px, {matcher}, disparities {}..{}, focal {:.1} px",
-        stats.width, stats.height, range.0, range.1, stats.rig.focal_px
+        "{}x{} px, {matcher}, disparities {}..{}, {rig}",
+        stats.width, stats.height, range.0, range.1
     )?;
     writeln!(out, "valid         {} px ({:.1} %)", stats.valid_pixels, stats.density_percent)?;
     if let Some(d) = &stats.depth_m {
@@ -213,6 +254,18 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
             "depth m       min {:.4}  p5 {:.4}  median {:.4}  mean {:.4}  p95 {:.4}  max {:.4}",
             d.min, d.p5, d.median, d.mean, d.p95, d.max
         )?;
+    }
+    if let (Some(r), Some(d)) = (&stats.depth_resolution_mm, &stats.depth_m) {
+        writeln!(
+            out,
+            "resolution    {:.3} mm at the median {:.3} m, {:.3} mm at p95 {:.3} m (per {} px of disparity)",
+            r.at_median, d.median, r.at_p95, d.p95, r.step_px
+        )?;
+    }
+    if let Some(rig) = &stats.rig {
+        if let (Some(fov), Some(w)) = (rig.horizontal_fov_deg, rig.sensor_width_mm) {
+            writeln!(out, "field of view {fov:.2}° horizontal ({w} mm sensor)")?;
+        }
     }
     if let Some(d) = &stats.disparity_px {
         writeln!(out, "disparity px  min {:.2}  median {:.2}  max {:.2}", d.min, d.median, d.max)?;

@@ -24,7 +24,7 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::config::{BatchConfig, BatchMergeConfig, PairConfig, UsageError};
-use crate::discover::{self, Calib, PairSpec};
+use crate::discover::{self, PairSpec};
 use crate::pair;
 use crate::report::Stats;
 use summary::{Row, Status, Summary, UnpairedRow};
@@ -40,11 +40,22 @@ struct Job<'a> {
     depth: String,
     disparity: Option<String>,
     stats: Option<String>,
+    points: Option<String>,
+    preview: Option<String>,
+    depth_png: Option<String>,
+    disparity_png: Option<String>,
 }
 
 impl Job<'_> {
+    /// Every requested output: the pair is complete when all exist.
     fn outputs(&self) -> impl Iterator<Item = &String> {
-        std::iter::once(&self.depth).chain(self.disparity.as_ref()).chain(self.stats.as_ref())
+        std::iter::once(&self.depth)
+            .chain(self.disparity.as_ref())
+            .chain(self.disparity_png.as_ref())
+            .chain(self.depth_png.as_ref())
+            .chain(self.points.as_ref())
+            .chain(self.preview.as_ref())
+            .chain(self.stats.as_ref())
     }
 
     fn is_complete(&self, out: &Path) -> bool {
@@ -67,7 +78,8 @@ pub fn run(config: &BatchConfig, out: &mut impl Write) -> Result<ExitCode> {
         let without: Vec<&PairSpec> = found.pairs.iter().filter(|p| p.calib.is_none()).collect();
         if let Some(first) = without.first() {
             return Err(UsageError(format!(
-                "{} of {} pairs ({}{}) have no Middlebury calib.txt: give --baseline, --focal and --pixel",
+                "{} of {} pairs ({}{}) have no Middlebury calib.txt: give --baseline and the focal \
+                 length (--focal and --pixel, --focal-px, or --calib)",
                 without.len(),
                 found.pairs.len(),
                 first.name,
@@ -88,6 +100,10 @@ pub fn run(config: &BatchConfig, out: &mut impl Write) -> Result<ExitCode> {
             depth: format!("{}.depth.exr", spec.name),
             disparity: config.disparity.then(|| format!("{}.disparity.pfm", spec.name)),
             stats: config.stats.then(|| format!("{}.stats.json", spec.name)),
+            points: config.points.then(|| format!("{}.points.ply", spec.name)),
+            preview: config.preview.then(|| format!("{}.preview.png", spec.name)),
+            depth_png: config.depth_png.then(|| format!("{}.depth.png", spec.name)),
+            disparity_png: config.disparity_png.then(|| format!("{}.disparity.png", spec.name)),
         })
         .collect();
     let summary_stem = match config.shard {
@@ -263,36 +279,38 @@ fn process(config: &BatchConfig, job: &Job) -> Result<Stats> {
             .with_context(|| format!("cannot create the output folder {}", folder.display()))?;
     }
 
-    let calib = match &job.spec.calib {
-        Some(path) => Some(read_calib(&config.input.join(path))?),
-        None => None,
+    // --calib replaces the pair's own calib.txt (which is then not read).
+    let found = match (&config.rig.calib, &job.spec.calib) {
+        (None, Some(path)) => Some(stereo_io::read_calib(&config.input.join(path))?),
+        _ => None,
     };
-    let (rig, rig_input) = config.rig.resolve(calib.as_ref())?;
+    let calib = config.rig.calib(found.as_ref());
+    let rig = config.rig.resolve(found.as_ref())?;
     let settings = &config.matching;
     let max_disparity = settings.max_disparity.or_else(|| {
-        let ndisp = calib.as_ref()?.ndisp?;
+        let ndisp = calib?.ndisp?;
         Some(i32::try_from(ndisp).unwrap_or(i32::MAX))
     });
     let pair = PairConfig {
         left: config.input.join(&job.spec.left),
         right: config.input.join(&job.spec.right),
-        rig_input,
-        rig,
+        rig: Some(rig),
         min_disparity: settings.min_disparity,
         max_disparity,
         matcher: settings.matcher.clone(),
-        output: depth,
+        output: Some(depth),
         disparity: job.disparity.as_ref().map(|p| out.join(p)),
         stats: job.stats.as_ref().map(|p| out.join(p)),
+        points: job.points.as_ref().map(|p| out.join(p)),
+        points_step: config.points_step,
+        preview: job.preview.as_ref().map(|p| out.join(p)),
+        preview_of: config.preview_of,
+        depth_png: job.depth_png.as_ref().map(|p| out.join(p)),
+        disparity_png: job.disparity_png.as_ref().map(|p| out.join(p)),
         quiet: true,
-        expected_size: calib.as_ref().and_then(|c| Some((c.width?, c.height?))),
+        expected_size: calib.and_then(|c| Some((c.width?, c.height?))),
     };
     pair::process(&pair)
-}
-
-fn read_calib(path: &Path) -> Result<Calib> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    discover::parse_calib(&text).map_err(|err| anyhow::anyhow!("{}: {err}", path.display()))
 }
 
 fn fill(row: &mut Row, stats: &Stats) {

@@ -31,13 +31,23 @@ use std::path::{Path, PathBuf};
 use stereo_disparity::DisparityMap;
 
 mod atomic;
+mod calib;
 mod exr;
 mod pfm;
+mod ply;
+mod png16;
+mod preview;
 mod raster;
 
 pub use atomic::{atomic_temp_path, write_atomic};
+pub use calib::{parse_calib, read_calib, Calib};
 pub use exr::{exr_channel_names, read_exr_channel, write_exr};
 pub use pfm::{encode_pfm, read_pfm, write_pfm};
+pub use ply::{encode_ply, read_ply_info, write_ply, PlyInfo, PlyProperty, PlyVertex};
+pub use png16::{
+    depth_to_mm, disparity_to_kitti, read_png_info, write_png16, PngInfo, DEPTH_PNG_MAX_MM, KITTI_SCALE,
+};
+pub use preview::{label as preview_label, render_preview, turbo, write_png_rgb8, ColourScale, Preview};
 pub use raster::{load_gray, load_rgb8};
 
 /// I/O errors, each naming the file.
