@@ -2,16 +2,27 @@
 //!
 //! `L_r(p, d) = C(p, d) + min(L_r(p-r, d), L_r(p-r, d±1) + P1, min_k L_r(p-r, k) + P2) - min_k L_r(p-r, k)`
 //!
-//! summed over the path directions `r`. The directions split into a forward pass (rows top to
-//! bottom, pixels left to right: →, ↓, ↘, ↙) and a mirrored backward pass, run on two threads.
+//! summed over the path directions `r`.
+//!
+//! **Two passes, by strips** (the default): the directions split into a forward pass (rows top
+//! to bottom, pixels left to right: →, ↓, ↘, ↙) and a mirrored backward pass, run on two
+//! threads. The image is cut into horizontal strips of [`StripPlan::rows`] rows, processed one
+//! after the other with one strip-sized `u16` sum volume reused by every strip. The forward pass
+//! runs straight through (its path state carries over from strip to strip, so its paths are
+//! exact); the backward pass of a strip starts [`StripPlan::overlap`] rows below the strip and
+//! warms its vertical and diagonal paths up over those rows without storing anything. With one
+//! strip (or an overlap reaching the bottom of the image) the result is exact SGM.
 //!
 //! Each pass computes the census Hamming costs of a row on the fly (no stored cost volume) and
-//! runs the four path steps of a pixel in one fused SIMD kernel ([`crate::simd::path_step`]),
-//! which adds the path costs straight into the shared `u16` sum volume. Rows are handed over
-//! through a per-row lock: the first pass to reach a row stores its sums, the second adds its own
-//! and, the row now being final, selects the row's disparities while it is still in cache. So
-//! the aggregated volume (`2·W·H·D` bytes) is the only `W·H·D` buffer; each pass holds
-//! `O(W·D)` of path state, allocated once.
+//! runs the path steps of a pixel in one fused SIMD kernel ([`crate::simd::path_step`]), which
+//! adds the path costs straight into the sum volume. Rows are handed over through a per-row lock:
+//! the first pass to reach a row stores its sums, the second adds its own and, the row now being
+//! final, selects the row's disparities while it is still in cache.
+//!
+//! **Single pass** ([`stream_and_select`]): only the directions coming from above or from the
+//! left (→, ↓, ↘, ↙, plus ← by a second sweep over each row, as OpenCV's default `MODE_SGBM`),
+//! so every row is final as soon as it is done: `O(W·D)` memory, one cost row per image row.
+//! The image is cut into one strip per thread, each warming its paths up over the rows above it.
 
 use std::sync::Mutex;
 
@@ -68,13 +79,22 @@ pub(crate) struct Inputs<'a> {
     pub selection: Selection,
 }
 
+/// How the two-pass aggregation cuts the image into strips.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct StripPlan {
+    /// Rows per strip (the sum volume holds this many rows).
+    pub rows: usize,
+    /// Rows below a strip over which the backward pass warms up its paths.
+    pub overlap: usize,
+}
+
 /// Bytes of path state one pass holds (for the memory plan).
 pub(crate) fn pass_state_bytes(width: usize, nd: usize, paths: PathCount) -> usize {
     let lanes = padded_lanes(nd);
     let stride = lanes + 2;
     let row_paths = if paths == PathCount::Eight { 3 } else { 1 };
-    // cost row + two rows per row path (+ minima) + horizontal + zero vector + WTA scratch
-    2 * (width * lanes + row_paths * 2 * width * (stride + 1) + 3 * stride) + WtaScratch::bytes(width)
+    // cost row + two rows per row path (+ minima) + 2×2 horizontal + zero vector + WTA scratch
+    2 * (width * lanes + row_paths * 2 * width * (stride + 1) + 5 * stride) + WtaScratch::bytes(width)
 }
 
 /// One row of the shared output: the path sums and the disparities, and whether one pass has
@@ -85,7 +105,7 @@ struct RowSlot<'a> {
     visited: bool,
 }
 
-#[derive(Clone, Copy, PartialEq, Eq)]
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
 enum Pass {
     /// Rows top to bottom, pixels left to right.
     Forward,
@@ -93,22 +113,61 @@ enum Pass {
     Backward,
 }
 
-/// Aggregates all path directions into `sum` (`[y][x][d]`, any initial contents) and selects
-/// every row's disparities into `disparity`.
-pub(crate) fn aggregate_and_select(inputs: &Inputs<'_>, sum: &mut [u16], disparity: &mut [f32]) {
+/// Aggregates all path directions strip by strip (see the module documentation) and selects
+/// every row's disparities into `disparity`. `volume` holds at least `plan.rows` rows of sums
+/// (`[y][x][d]`, any initial contents).
+pub(crate) fn aggregate_and_select(
+    inputs: &Inputs<'_>,
+    plan: StripPlan,
+    volume: &mut [u16],
+    disparity: &mut [f32],
+) {
     let (width, height) = inputs.image.size();
     let nd = inputs.range.count();
-    debug_assert_eq!(sum.len(), width * height * nd);
+    let strip_rows = plan.rows.clamp(1, height.max(1));
+    debug_assert!(volume.len() >= strip_rows.min(height) * width * nd);
     debug_assert_eq!(disparity.len(), width * height);
-    let rows: Vec<Mutex<RowSlot<'_>>> = sum
-        .chunks_mut(width * nd)
-        .zip(disparity.chunks_mut(width))
-        .map(|(sum, disparity)| Mutex::new(RowSlot { sum, disparity, visited: false }))
-        .collect();
-    rayon::join(
-        || aggregate_pass(inputs, Pass::Forward, &rows),
-        || aggregate_pass(inputs, Pass::Backward, &rows),
-    );
+    let mut forward = PassState::new(inputs, Pass::Forward);
+    let mut backward = PassState::new(inputs, Pass::Backward);
+    for (strip, disparity) in disparity.chunks_mut(strip_rows * width).enumerate() {
+        let y0 = strip * strip_rows;
+        let y1 = y0 + disparity.len() / width.max(1);
+        let rows: Vec<Mutex<RowSlot<'_>>> = volume[..(y1 - y0) * width * nd]
+            .chunks_mut(width * nd)
+            .zip(disparity.chunks_mut(width))
+            .map(|(sum, disparity)| Mutex::new(RowSlot { sum, disparity, visited: false }))
+            .collect();
+        let warm_end = y1.saturating_add(plan.overlap).min(height);
+        let rows = &rows;
+        let (forward, backward) = (&mut forward, &mut backward);
+        rayon::join(
+            || run_rows(forward, inputs, y0, y1, rows),
+            || {
+                backward.restart();
+                run_rows(backward, inputs, y1, warm_end, &[]);
+                run_rows(backward, inputs, y0, y1, rows);
+            },
+        );
+    }
+}
+
+/// The single-pass ("streaming") aggregation over the directions from above and the left
+/// (→, ↓, ↘, ↙ and ← for 8 paths; →, ↓ and ← for 4), one strip per worker thread, each warming up
+/// over `overlap` rows above it; selects every row's disparities into `disparity`.
+pub(crate) fn stream_and_select(inputs: &Inputs<'_>, strips: usize, overlap: usize, disparity: &mut [f32]) {
+    let (width, height) = inputs.image.size();
+    let strip_rows = height.div_ceil(strips.clamp(1, height.max(1))).max(1);
+    rayon::scope(|scope| {
+        for (strip, disparity) in disparity.chunks_mut(strip_rows * width).enumerate() {
+            scope.spawn(move |_| {
+                let y0 = strip * strip_rows;
+                let y1 = y0 + disparity.len() / width.max(1);
+                let mut state = PassState::new(inputs, Pass::Forward);
+                let mut sum = vec![0u16; width * inputs.range.count()];
+                stream_rows(&mut state, inputs, y0.saturating_sub(overlap), y0, y1, &mut sum, disparity);
+            });
+        }
+    });
 }
 
 /// How many pixels ahead the second pass prefetches the sums it will add to: by then the first
@@ -152,155 +211,392 @@ impl RowPaths {
     }
 }
 
-fn aggregate_pass(inputs: &Inputs<'_>, pass: Pass, rows: &[Mutex<RowSlot<'_>>]) {
-    match simd::features().level {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: the level was detected on this CPU.
-        Level::Avx512 => unsafe { aggregate_pass_avx512(inputs, pass, rows) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above.
-        Level::Avx2 => unsafe { aggregate_pass_avx2(inputs, pass, rows) },
-        _ => aggregate_pass_generic(inputs, pass, rows, Level::Scalar),
+/// The `O(W·D)` state of one pass: the current cost row, the path costs of the previous and the
+/// current row, and the WTA scratch. Allocated once per call.
+struct PassState {
+    pass: Pass,
+    /// The previous row of this pass, or `None` when the next row starts the paths.
+    prev_y: Option<usize>,
+    cost: Vec<u16>,
+    vertical: [RowPaths; 2],
+    diag_a: [RowPaths; 2],
+    diag_b: [RowPaths; 2],
+    horizontal: [Vec<u16>; 2],
+    zero: Vec<u16>,
+    scratch: WtaScratch,
+}
+
+impl PassState {
+    fn new(inputs: &Inputs<'_>, pass: Pass) -> Self {
+        let width = inputs.image.width();
+        let lanes = padded_lanes(inputs.range.count());
+        let stride = lanes + 2;
+        let diagonal_width = if inputs.paths == PathCount::Eight { width } else { 0 };
+        PassState {
+            pass,
+            prev_y: None,
+            cost: vec![0; width * lanes],
+            vertical: RowPaths::pair(width, stride),
+            diag_a: RowPaths::pair(diagonal_width, stride),
+            diag_b: RowPaths::pair(diagonal_width, stride),
+            horizontal: [vec![PAD; stride], vec![PAD; stride]],
+            zero: vec![0; stride],
+            scratch: WtaScratch::new(width),
+        }
+    }
+
+    /// The next row starts every path afresh (as at the image border).
+    fn restart(&mut self) {
+        self.prev_y = None;
     }
 }
 
-/// The pass compiled for AVX-512BW, so the path-step kernel inlines into the pixel loop.
-///
-/// # Safety
-/// The CPU must have AVX-512F/BW/VL.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2")]
-unsafe fn aggregate_pass_avx512(inputs: &Inputs<'_>, pass: Pass, rows: &[Mutex<RowSlot<'_>>]) {
-    aggregate_pass_generic(inputs, pass, rows, Level::Avx512)
+/// Per-level entry points of a `#[inline(always)]` generic body, so the SIMD kernels inline into it.
+macro_rules! dispatch {
+    ($generic:ident, $avx512:ident, $avx2:ident, ($($arg:ident: $ty:ty),*)) => {
+        /// # Safety
+        /// The CPU must have AVX-512F/BW/VL.
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2")]
+        unsafe fn $avx512($($arg: $ty),*) {
+            $generic($($arg),*, Level::Avx512)
+        }
+
+        /// # Safety
+        /// The CPU must have AVX2.
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2")]
+        unsafe fn $avx2($($arg: $ty),*) {
+            $generic($($arg),*, Level::Avx2)
+        }
+    };
 }
 
-/// The pass compiled for AVX2.
-///
-/// # Safety
-/// The CPU must have AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn aggregate_pass_avx2(inputs: &Inputs<'_>, pass: Pass, rows: &[Mutex<RowSlot<'_>>]) {
-    aggregate_pass_generic(inputs, pass, rows, Level::Avx2)
+dispatch!(run_rows_generic, run_rows_avx512, run_rows_avx2,
+    (state: &mut PassState, inputs: &Inputs<'_>, y0: usize, y1: usize, rows: &[Mutex<RowSlot<'_>>]));
+dispatch!(stream_rows_generic, stream_rows_avx512, stream_rows_avx2,
+    (state: &mut PassState, inputs: &Inputs<'_>, warm: usize, y0: usize, y1: usize, sum: &mut [u16], disparity: &mut [f32]));
+
+/// Runs `state`'s pass over rows `y0..y1` (in the pass's direction). With `rows` (one slot per
+/// row from `y0`) it stores or adds the sums and selects the finished rows; with no slots it only
+/// advances the paths (warm-up).
+fn run_rows(state: &mut PassState, inputs: &Inputs<'_>, y0: usize, y1: usize, rows: &[Mutex<RowSlot<'_>>]) {
+    match simd::features().level {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the level was detected on this CPU.
+        Level::Avx512 => unsafe { run_rows_avx512(state, inputs, y0, y1, rows) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as above.
+        Level::Avx2 => unsafe { run_rows_avx2(state, inputs, y0, y1, rows) },
+        _ => run_rows_generic(state, inputs, y0, y1, rows, Level::Scalar),
+    }
 }
 
 #[inline(always)]
-fn aggregate_pass_generic(inputs: &Inputs<'_>, pass: Pass, rows: &[Mutex<RowSlot<'_>>], level: Level) {
-    let (width, height) = inputs.image.size();
+fn run_rows_generic(
+    state: &mut PassState,
+    inputs: &Inputs<'_>,
+    y0: usize,
+    y1: usize,
+    rows: &[Mutex<RowSlot<'_>>],
+    level: Level,
+) {
+    let (width, nd) = (inputs.image.width(), inputs.range.count());
+    for i in 0..y1.saturating_sub(y0) {
+        let y = if state.pass == Pass::Forward { y0 + i } else { y1 - 1 - i };
+        if rows.is_empty() {
+            step_row(state, inputs, y, level, &mut [], false);
+            continue;
+        }
+        let mut slot = rows[y - y0].lock().unwrap_or_else(|e| e.into_inner());
+        let accumulate = slot.visited;
+        step_row(state, inputs, y, level, slot.sum, accumulate);
+        if accumulate {
+            // Both passes are in: the row's sums are final.
+            let RowSlot { sum, disparity, .. } = &mut *slot;
+            select_row(sum, width, nd, inputs.selection, &mut state.scratch, disparity);
+        } else {
+            slot.visited = true;
+        }
+    }
+}
+
+fn stream_rows(
+    state: &mut PassState,
+    inputs: &Inputs<'_>,
+    warm: usize,
+    y0: usize,
+    y1: usize,
+    sum: &mut [u16],
+    disparity: &mut [f32],
+) {
+    match simd::features().level {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the level was detected on this CPU.
+        Level::Avx512 => unsafe { stream_rows_avx512(state, inputs, warm, y0, y1, sum, disparity) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as above.
+        Level::Avx2 => unsafe { stream_rows_avx2(state, inputs, warm, y0, y1, sum, disparity) },
+        _ => stream_rows_generic(state, inputs, warm, y0, y1, sum, disparity, Level::Scalar),
+    }
+}
+
+/// The single pass over rows `warm..y1`: warm-up only above `y0`, then per row the forward
+/// directions (stored into the row's `sum`), the ← sweep (added) and the selection into the
+/// row's `disparity` (`disparity` starts at row `y0`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn stream_rows_generic(
+    state: &mut PassState,
+    inputs: &Inputs<'_>,
+    warm: usize,
+    y0: usize,
+    y1: usize,
+    sum: &mut [u16],
+    disparity: &mut [f32],
+    level: Level,
+) {
+    let (width, nd) = (inputs.image.width(), inputs.range.count());
+    let lanes = padded_lanes(nd);
+    for y in warm..y1 {
+        if y < y0 {
+            step_row(state, inputs, y, level, &mut [], false);
+            continue;
+        }
+        step_row(state, inputs, y, level, sum, false);
+        // ←: right to left over the same cost row, added to the row's sums.
+        let row = inputs.image.row(y);
+        let start = PathIn { prev: &state.zero, prev_min: 0, p2: 0 };
+        let mut h_min = 0u16;
+        for x in (0..width).rev() {
+            let [h_prev, h_cur] = &mut state.horizontal;
+            let h_in = if x + 1 == width {
+                start
+            } else {
+                PathIn { prev: h_prev, prev_min: h_min, p2: inputs.p2.p2(row[x], row[x + 1]) }
+            };
+            let [m] = simd::path_step(
+                level,
+                &state.cost[x * lanes..(x + 1) * lanes],
+                inputs.p1,
+                [h_in],
+                [h_cur],
+                &mut sum[x * nd..(x + 1) * nd],
+                true,
+            );
+            h_min = m;
+            state.horizontal.swap(0, 1);
+        }
+        let out = &mut disparity[(y - y0) * width..(y - y0 + 1) * width];
+        select_row(sum, width, nd, inputs.selection, &mut state.scratch, out);
+    }
+}
+
+/// One row of `state`'s pass: the row's cost row, then every pixel's path steps (horizontal,
+/// vertical and, for 8 paths, both diagonals) in the pass's direction, storing (or, with
+/// `accumulate`, adding) the path costs into `sum` (`[x][d]`; empty for warm-up).
+#[inline(always)]
+fn step_row(
+    state: &mut PassState,
+    inputs: &Inputs<'_>,
+    y: usize,
+    level: Level,
+    sum: &mut [u16],
+    accumulate: bool,
+) {
+    let width = inputs.image.width();
     let nd = inputs.range.count();
-    let features = simd::features();
     let lanes = padded_lanes(nd);
     let stride = lanes + 2;
     let diagonals = inputs.paths == PathCount::Eight;
     let (p1, p2) = (inputs.p1, inputs.p2);
-
-    let mut cost = vec![0u16; width * lanes];
-    // Previous and current row of the vertical and the two diagonal paths.
-    let mut vertical = RowPaths::pair(width, stride);
-    let (mut diag_a, mut diag_b) = if diagonals {
-        (RowPaths::pair(width, stride), RowPaths::pair(width, stride))
-    } else {
-        (RowPaths::pair(0, stride), RowPaths::pair(0, stride))
-    };
-    let mut horizontal = [vec![PAD; stride], vec![PAD; stride]];
+    let forward = state.pass == Pass::Forward;
+    let first_row = state.prev_y.is_none();
+    let prev_y = state.prev_y.unwrap_or(y);
+    state.prev_y = Some(y);
+    let row = inputs.image.row(y);
+    let prev_row = inputs.image.row(prev_y);
+    simd::cost_row(
+        simd::features(),
+        inputs.census_left.row(y),
+        inputs.census_right.row(y),
+        inputs.range.min,
+        nd,
+        inputs.worst,
+        &mut state.cost,
+    );
+    let store = !sum.is_empty();
+    let PassState { cost, vertical, diag_a, diag_b, horizontal, zero, .. } = state;
     // A path entering the image: stepping from all-zero costs yields the matching cost.
-    let zero = vec![0u16; stride];
-    let start = PathIn { prev: &zero, prev_min: 0, p2: 0 };
-    let mut scratch = WtaScratch::new(width);
-
+    let start = PathIn { prev: zero, prev_min: 0, p2: 0 };
+    let [v_prev, v_cur] = vertical;
+    let [a_prev, a_cur] = diag_a;
+    let [b_prev, b_cur] = diag_b;
+    let mut h_min = 0u16;
+    // The input of a path continuing from pixel `from` of the previous row.
+    fn at<'a>(paths: &'a RowPaths, from: usize, stride: usize, p2: u16) -> PathIn<'a> {
+        PathIn { prev: &paths.costs[from * stride..(from + 1) * stride], prev_min: paths.mins[from], p2 }
+    }
     // The diagonal "a" comes from x - step in the previous row of the pass, "b" from x + step.
-    let forward = pass == Pass::Forward;
-    for row_index in 0..height {
-        let y = if forward { row_index } else { height - 1 - row_index };
-        let first_row = row_index == 0;
-        let prev_y = if first_row {
-            y
-        } else if forward {
-            y - 1
-        } else {
-            y + 1
-        };
-        let row = inputs.image.row(y);
-        let prev_row = inputs.image.row(prev_y);
-        simd::cost_row(
-            features,
-            inputs.census_left.row(y),
-            inputs.census_right.row(y),
-            inputs.range.min,
-            nd,
-            inputs.worst,
-            &mut cost,
-        );
-
-        let mut slot = rows[y].lock().unwrap_or_else(|e| e.into_inner());
-        let accumulate = slot.visited;
-        let [v_prev, v_cur] = &mut vertical;
-        let [a_prev, a_cur] = &mut diag_a;
-        let [b_prev, b_cur] = &mut diag_b;
-        let mut h_min = 0u16;
-        // The input of a path continuing from pixel `from` of the previous row.
-        fn at<'a>(paths: &'a RowPaths, from: usize, stride: usize, p2: u16) -> PathIn<'a> {
-            PathIn { prev: &paths.costs[from * stride..(from + 1) * stride], prev_min: paths.mins[from], p2 }
-        }
-        for col_index in 0..width {
-            let x = if forward { col_index } else { width - 1 - col_index };
-            let c = &cost[x * lanes..(x + 1) * lanes];
-            let here = row[x];
-            if accumulate {
-                prefetch_ahead(slot.sum, x, nd, forward);
-            }
-            let sum = &mut slot.sum[x * nd..(x + 1) * nd];
-            let [h_prev, h_cur] = &mut horizontal;
-            let h_in = if col_index == 0 {
-                start
-            } else {
-                let from = if forward { x - 1 } else { x + 1 };
-                PathIn { prev: h_prev, prev_min: h_min, p2: p2.p2(here, row[from]) }
-            };
-            let v_in = if first_row { start } else { at(v_prev, x, stride, p2.p2(here, prev_row[x])) };
-            let v_out = &mut v_cur.costs[x * stride..(x + 1) * stride];
-            if diagonals {
-                let (left, right) = (x.checked_sub(1), (x + 1 < width).then_some(x + 1));
-                let (a_from, b_from) = if forward { (left, right) } else { (right, left) };
-                let a_in = match a_from {
-                    Some(f) if !first_row => at(a_prev, f, stride, p2.p2(here, prev_row[f])),
-                    _ => start,
-                };
-                let b_in = match b_from {
-                    Some(f) if !first_row => at(b_prev, f, stride, p2.p2(here, prev_row[f])),
-                    _ => start,
-                };
-                let a_out = &mut a_cur.costs[x * stride..(x + 1) * stride];
-                let b_out = &mut b_cur.costs[x * stride..(x + 1) * stride];
-                let [mh, mv, ma, mb] = simd::path_step(
-                    level,
-                    c,
-                    p1,
-                    [h_in, v_in, a_in, b_in],
-                    [h_cur, v_out, a_out, b_out],
-                    sum,
-                    accumulate,
-                );
-                h_min = mh;
-                v_cur.mins[x] = mv;
-                a_cur.mins[x] = ma;
-                b_cur.mins[x] = mb;
-            } else {
-                let [mh, mv] = simd::path_step(level, c, p1, [h_in, v_in], [h_cur, v_out], sum, accumulate);
-                h_min = mh;
-                v_cur.mins[x] = mv;
-            }
-            horizontal.swap(0, 1);
-        }
-        vertical.swap(0, 1);
-        diag_a.swap(0, 1);
-        diag_b.swap(0, 1);
+    for col_index in 0..width {
+        let x = if forward { col_index } else { width - 1 - col_index };
+        let c = &cost[x * lanes..(x + 1) * lanes];
+        let here = row[x];
         if accumulate {
-            // Both passes are in: the row's sums are final.
-            let RowSlot { sum, disparity, .. } = &mut *slot;
-            select_row(sum, width, nd, inputs.selection, &mut scratch, disparity);
+            prefetch_ahead(sum, x, nd, forward);
+        }
+        let sum = if store { &mut sum[x * nd..(x + 1) * nd] } else { &mut [][..] };
+        let [h_prev, h_cur] = &mut *horizontal;
+        let h_in = if col_index == 0 {
+            start
         } else {
-            slot.visited = true;
+            let from = if forward { x - 1 } else { x + 1 };
+            PathIn { prev: h_prev, prev_min: h_min, p2: p2.p2(here, row[from]) }
+        };
+        let v_in = if first_row { start } else { at(v_prev, x, stride, p2.p2(here, prev_row[x])) };
+        let v_out = &mut v_cur.costs[x * stride..(x + 1) * stride];
+        if diagonals {
+            let (left, right) = (x.checked_sub(1), (x + 1 < width).then_some(x + 1));
+            let (a_from, b_from) = if forward { (left, right) } else { (right, left) };
+            let a_in = match a_from {
+                Some(f) if !first_row => at(a_prev, f, stride, p2.p2(here, prev_row[f])),
+                _ => start,
+            };
+            let b_in = match b_from {
+                Some(f) if !first_row => at(b_prev, f, stride, p2.p2(here, prev_row[f])),
+                _ => start,
+            };
+            let a_out = &mut a_cur.costs[x * stride..(x + 1) * stride];
+            let b_out = &mut b_cur.costs[x * stride..(x + 1) * stride];
+            let [mh, mv, ma, mb] = simd::path_step(
+                level,
+                c,
+                p1,
+                [h_in, v_in, a_in, b_in],
+                [h_cur, v_out, a_out, b_out],
+                sum,
+                accumulate,
+            );
+            h_min = mh;
+            v_cur.mins[x] = mv;
+            a_cur.mins[x] = ma;
+            b_cur.mins[x] = mb;
+        } else {
+            let [mh, mv] = simd::path_step(level, c, p1, [h_in, v_in], [h_cur, v_out], sum, accumulate);
+            h_min = mh;
+            v_cur.mins[x] = mv;
+        }
+        horizontal.swap(0, 1);
+    }
+    vertical.swap(0, 1);
+    diag_a.swap(0, 1);
+    diag_b.swap(0, 1);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reference::{census_transform, hamming_cost_volume};
+    use crate::wta::select_row_reference;
+    use crate::{CensusWindow, Subpixel};
+
+    /// The single-pass sums by the textbook recurrence: every direction `(dx, dy)` from above or
+    /// the left, paths starting where the previous pixel is outside the image.
+    fn stream_sums_reference(
+        image: &GrayImage,
+        cost: &[u8],
+        nd: usize,
+        paths: PathCount,
+        p1: u16,
+        p2: &P2Table,
+    ) -> Vec<u16> {
+        let (w, h) = image.size();
+        let dirs: &[(i64, i64)] = if paths == PathCount::Eight {
+            &[(1, 0), (0, 1), (1, 1), (-1, 1), (-1, 0)]
+        } else {
+            &[(1, 0), (0, 1), (-1, 0)]
+        };
+        let mut sum = vec![0u16; w * h * nd];
+        for &(dx, dy) in dirs {
+            let mut l = vec![0u16; w * h * nd];
+            let ys: Vec<usize> = (0..h).collect();
+            let xs: Vec<usize> = if dx < 0 { (0..w).rev().collect() } else { (0..w).collect() };
+            for &y in &ys {
+                for &x in &xs {
+                    let (px, py) = (x as i64 - dx, y as i64 - dy);
+                    let c = &cost[(y * w + x) * nd..][..nd];
+                    let at = (y * w + x) * nd;
+                    if px < 0 || py < 0 || px >= w as i64 {
+                        for d in 0..nd {
+                            l[at + d] = u16::from(c[d]);
+                        }
+                        continue;
+                    }
+                    let from = (py as usize * w + px as usize) * nd;
+                    let prev = l[from..from + nd].to_vec();
+                    let pmin = *prev.iter().min().unwrap();
+                    let jump =
+                        pmin.saturating_add(p2.p2(image.get(x, y), image.get(px as usize, py as usize)));
+                    for d in 0..nd {
+                        let mut best = prev[d].min(jump);
+                        if d > 0 {
+                            best = best.min(prev[d - 1].saturating_add(p1));
+                        }
+                        if d + 1 < nd {
+                            best = best.min(prev[d + 1].saturating_add(p1));
+                        }
+                        l[at + d] = u16::from(c[d]).saturating_add(best).wrapping_sub(pmin);
+                    }
+                }
+            }
+            for (s, v) in sum.iter_mut().zip(&l) {
+                *s = s.wrapping_add(*v);
+            }
+        }
+        sum
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
+
+        /// The single pass gives the textbook recurrence's winners bit for bit, on one strip and on
+        /// several strips whose warm-up reaches the top of the image.
+        #[test]
+        fn single_pass_matches_the_recurrence(
+            w in 9usize..70, h in 7usize..30, nd_frac in 0.0f64..1.0, min in -6i32..6, four in proptest::prelude::any::<bool>(),
+            p1 in 1u16..40, p2_extra in 1u16..200, edge in 0u16..40, strips in 1usize..5, seed in proptest::prelude::any::<u64>(),
+        ) {
+            let nd = ((w as f64 * nd_frac.min(0.8)) as usize).max(1);
+            let range = DisparityRange::new(min, min + nd as i32).unwrap();
+            let mut s = seed | 1;
+            let left = GrayImage::from_fn(w, h, |_, _| { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s as u16 });
+            let right = GrayImage::from_fn(w, h, |x, y| left.get((x + 2) % w, y) ^ ((x * y) as u16 & 0x0300));
+            let window = CensusWindow { width: 5, height: 5 };
+            let (mut cl, mut cr) = (Image::new(w, h, 0u64), Image::new(w, h, 0u64));
+            census_transform(&left, window, &mut cl);
+            census_transform(&right, window, &mut cr);
+            let mut cost = vec![0u8; w * h * nd];
+            hamming_cost_volume(&cl, &cr, range, 24, &mut cost);
+            let paths = if four { PathCount::Four } else { PathCount::Eight };
+            let p2 = P2Table::new(p1, (p1 + p2_extra).min(MAX_P2), edge);
+            let selection = Selection { range, uniqueness_ratio: 5, lr_max_diff: Some(1.0), subpixel: Subpixel::Equiangular };
+            let sums = stream_sums_reference(&left, &cost, nd, paths, p1, &p2);
+            let mut expected = vec![f32::NAN; w * h];
+            let mut right_best = vec![0usize; w];
+            for (out, costs) in expected.chunks_mut(w).zip(sums.chunks(w * nd)) {
+                select_row_reference(costs, w, nd, selection, &mut right_best, out);
+            }
+            let inputs = Inputs {
+                image: &left, census_left: &cl, census_right: &cr, range, worst: crate::cost::infeasible_cost(24),
+                paths, p1, p2: &p2, selection,
+            };
+            for (threads, overlap) in [(1, 0), (strips, h)] {
+                let mut got = vec![f32::NAN; w * h];
+                stream_and_select(&inputs, threads, overlap, &mut got);
+                for (i, (a, b)) in got.iter().zip(&expected).enumerate() {
+                    proptest::prop_assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "{threads} strips, pixel {i}: {a} vs {b}");
+                }
+            }
         }
     }
 }

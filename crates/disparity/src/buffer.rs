@@ -66,39 +66,6 @@ impl<T: Copy> Drop for ZeroedBuffer<T> {
     }
 }
 
-/// Volumes kept between calls are at most this large (bytes); bigger ones are unmapped.
-const KEEP_LIMIT: usize = 256 << 20;
-
-/// The aggregation volume of the previous [`crate::sgm`] call, reused by the next one: mapping
-/// fresh memory costs the kernel a page fault and a page clear per page (about a fifth of the
-/// match time on a 2-core machine), so images after the first skip that.
-static SPARE_VOLUME: std::sync::Mutex<Option<ZeroedBuffer<u16>>> = std::sync::Mutex::new(None);
-
-/// A `u16` buffer of at least `len` entries with arbitrary (initialised) contents: the spare one
-/// if it is large enough, else a fresh one.
-pub(crate) fn take_volume(len: usize) -> ZeroedBuffer<u16> {
-    let mut spare = SPARE_VOLUME.lock().unwrap_or_else(|e| e.into_inner());
-    match spare.take() {
-        Some(buffer) if buffer.len >= len => buffer,
-        // Too small: drop it first so the two never both occupy memory.
-        _ => {
-            drop(spare);
-            ZeroedBuffer::new(len)
-        }
-    }
-}
-
-/// Keeps `buffer` for the next [`take_volume`] (the larger of it and the current spare).
-pub(crate) fn give_back_volume(buffer: ZeroedBuffer<u16>) {
-    if buffer.len * 2 > KEEP_LIMIT {
-        return;
-    }
-    let mut spare = SPARE_VOLUME.lock().unwrap_or_else(|e| e.into_inner());
-    if spare.as_ref().is_none_or(|s| s.len < buffer.len) {
-        *spare = Some(buffer);
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

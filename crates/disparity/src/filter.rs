@@ -177,6 +177,77 @@ pub(crate) fn median_3x3_reference(disparity: &DisparityMap) -> DisparityMap {
     out
 }
 
+/// Edge-aware weighted median: each pixel becomes the weighted median of the valid disparities
+/// in its `(2·radius + 1)²` window, a neighbour weighing
+/// `exp(-ΔI² / (2·σc²) - r² / (2·σs²))` for its grey-level difference `ΔI` to the centre in
+/// `guide` (8-bit levels) and its distance `r` (`σs = radius`). Disparity edges move onto the
+/// image edges, which undoes most of the edge fattening of window costs. Invalid pixels stay
+/// invalid unless `fill_holes`, where they take the weighted median of their valid neighbours.
+pub fn weighted_median(
+    disparity: &DisparityMap,
+    guide: &crate::GrayImage,
+    radius: usize,
+    sigma_color: f32,
+    fill_holes: bool,
+) -> DisparityMap {
+    let (width, height) = disparity.size();
+    assert_eq!(guide.size(), (width, height), "guide image size");
+    if radius == 0 || width == 0 {
+        return disparity.clone();
+    }
+    let colour: Vec<f32> =
+        (0..256).map(|d| (-((d * d) as f32) / (2.0 * sigma_color * sigma_color)).exp()).collect();
+    let side = 2 * radius + 1;
+    let sigma_space = radius as f32;
+    let space: Vec<f32> = (0..side * side)
+        .map(|i| {
+            let (dx, dy) = ((i % side) as f32 - radius as f32, (i / side) as f32 - radius as f32);
+            (-(dx * dx + dy * dy) / (2.0 * sigma_space * sigma_space)).exp()
+        })
+        .collect();
+    let mut out = disparity.clone();
+    out.as_mut_slice().par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+        let mut window: Vec<(f32, f32)> = Vec::with_capacity(side * side);
+        let ys = y.saturating_sub(radius)..(y + radius + 1).min(height);
+        for (x, o) in row.iter_mut().enumerate() {
+            if o.is_nan() && !fill_holes {
+                continue;
+            }
+            let centre = guide.get(x, y) / 257;
+            let xs = x.saturating_sub(radius)..(x + radius + 1).min(width);
+            window.clear();
+            let mut total = 0.0;
+            for yy in ys.clone() {
+                let drow = disparity.row(yy);
+                let grow = guide.row(yy);
+                let srow = &space[(yy + radius - y) * side..];
+                for xx in xs.clone() {
+                    let d = drow[xx];
+                    if d.is_nan() {
+                        continue;
+                    }
+                    let w = colour[usize::from((grow[xx] / 257).abs_diff(centre))] * srow[xx + radius - x];
+                    window.push((d, w));
+                    total += w;
+                }
+            }
+            if window.is_empty() {
+                continue;
+            }
+            window.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            let mut acc = 0.0;
+            for &(d, w) in &window {
+                acc += w;
+                if acc >= 0.5 * total {
+                    *o = d;
+                    break;
+                }
+            }
+        }
+    });
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -25,19 +25,29 @@ mod bm;
 mod buffer;
 mod census;
 mod cost;
+mod fill;
 mod filter;
 mod image;
+mod memory;
+mod post;
 #[cfg(test)]
 mod reference;
 mod sgm;
 mod simd;
+mod speckle;
 #[doc(hidden)]
 pub mod stages;
+mod status;
 mod wta;
 
 pub use bm::block_match;
+pub use fill::{fill_invalid, filled_mask};
+pub use filter::weighted_median;
 pub use image::{DisparityMap, GrayImage, Image};
-pub use sgm::{planned_memory_bytes, sgm};
+pub use post::SgmOutput;
+pub use sgm::{planned_memory_bytes, sgm, sgm_detailed};
+pub use speckle::remove_speckles;
+pub use status::PixelStatus;
 
 /// Errors a matcher reports instead of panicking on unusable input.
 #[derive(Debug, thiserror::Error)]
@@ -182,6 +192,29 @@ pub struct SgmParams {
     pub subpixel: Subpixel,
     /// A 3×3 median over valid disparities after the checks.
     pub median: bool,
+    /// Single-pass ("streaming") aggregation: only the directions from above and the left
+    /// (→ ↓ ↘ ↙ and ← for [`PathCount::Eight`], like OpenCV's `MODE_SGBM`; → ↓ ← for
+    /// [`PathCount::Four`]), so no `W·H·D` volume is kept: `O(W·D)` memory per thread and
+    /// about twice the speed, at some accuracy cost.
+    pub single_pass: bool,
+    /// Upper bound (bytes) on the working memory the matcher plans (see
+    /// [`planned_memory_bytes`]): the two-pass aggregation then runs on horizontal strips short
+    /// enough to fit. `None` uses the default plan (strips sized for speed, see
+    /// [`planned_memory_bytes`]). A bound too small for even one-row strips is an error.
+    pub max_memory: Option<usize>,
+    /// Speckle filter: 4-connected regions of valid pixels whose neighbours differ by at most
+    /// [`SgmParams::speckle_max_diff`] and that hold fewer than this many pixels are invalidated
+    /// (after the median); 0 disables it.
+    pub speckle_size: usize,
+    /// The largest disparity difference (px) between neighbours of one speckle region.
+    pub speckle_max_diff: f32,
+    /// Dense output: invalid pixels are filled, occlusions from the background side and
+    /// mismatches by interpolation ([`fill_invalid`]); [`sgm_detailed`] says which were filled.
+    pub fill: bool,
+    /// Edge-aware weighted median radius (px; 0 disables it): see [`weighted_median`].
+    pub wmf_radius: usize,
+    /// Its colour sigma (8-bit grey levels).
+    pub wmf_sigma_color: f32,
 }
 
 impl Default for SgmParams {
@@ -197,12 +230,58 @@ impl Default for SgmParams {
             p2: 80,
             p2_edge_scale: 0,
             uniqueness_ratio: 0,
-            lr_max_diff: Some(2.0),
+            // 3 px (was 2): better bad2 on all seven scenes (docs/accuracy.md); the right view's
+            // disparities come from the left volume and are noisier than a second matching.
+            lr_max_diff: Some(3.0),
             subpixel: Subpixel::Equiangular,
             median: true,
+            single_pass: false,
+            max_memory: None,
+            speckle_size: 0,
+            speckle_max_diff: 1.0,
+            fill: false,
+            wmf_radius: 0,
+            wmf_sigma_color: 10.0,
         }
     }
 }
+
+/// Ready-made [`SgmParams`] trade-offs between speed and accuracy (`--preset`); see
+/// [`SgmParams::preset`]. Measurements in `docs/accuracy.md`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Preset {
+    /// Four paths: about half the aggregation work, somewhat more streaking.
+    Fast,
+    /// The default parameters ([`SgmParams::default`]).
+    #[default]
+    Balanced,
+    /// Balanced plus an edge-aware weighted median (radius 5) that pulls disparity edges onto
+    /// image edges: fewer errors at depth discontinuities, several times slower post-processing.
+    Accurate,
+}
+
+impl SgmParams {
+    /// The parameters of `preset` (range: the default; set it for the pair). Every field can be
+    /// changed afterwards.
+    pub fn preset(preset: Preset) -> Self {
+        let balanced = SgmParams::default();
+        match preset {
+            Preset::Fast => SgmParams { paths: PathCount::Four, ..balanced },
+            Preset::Balanced => balanced,
+            Preset::Accurate => SgmParams { wmf_radius: 5, wmf_sigma_color: 20.0, ..balanced },
+        }
+    }
+
+    /// Dense output (`--fill`): [`SgmParams::fill`] on and, unless a speckle size is already
+    /// set, speckles under [`DENSE_SPECKLE_SIZE`] pixels removed first so the fill replaces them.
+    pub fn with_fill(self) -> Self {
+        let speckle_size = if self.speckle_size == 0 { DENSE_SPECKLE_SIZE } else { self.speckle_size };
+        SgmParams { fill: true, speckle_size, ..self }
+    }
+}
+
+/// The speckle size [`SgmParams::with_fill`] uses: chosen by measurement of the filled maps.
+pub const DENSE_SPECKLE_SIZE: usize = 400;
 
 /// The window cost block matching uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -258,6 +258,60 @@ pub(crate) fn sgm_reference(
     right: &GrayImage,
     params: &crate::SgmParams,
 ) -> crate::DisparityMap {
+    sgm_reference_ad(left, right, params, None)
+}
+
+/// Adds an AD-census term to a census cost volume (a prototype to measure the cost kernel
+/// change, see docs/accuracy.md): `cost += round(weight · min(BT, truncation))`, with BT the
+/// Birchfield–Tomasi sampling-insensitive absolute difference in 8-bit grey levels; infeasible
+/// disparities keep their cost; the sum saturates at 255.
+pub(crate) fn add_ad_costs(
+    left: &GrayImage,
+    right: &GrayImage,
+    range: DisparityRange,
+    weight: f32,
+    truncation: f32,
+    volume: &mut [u8],
+) {
+    let (width, _) = left.size();
+    let nd = range.count();
+    let grey = |row: &[u16], x: usize| f32::from(row[x]) / 257.0;
+    // Interval [min, max] of the half-pixel interpolation around x.
+    let interval = |row: &[u16], x: usize| {
+        let c = grey(row, x);
+        let a = 0.5 * (c + grey(row, x.saturating_sub(1)));
+        let b = 0.5 * (c + grey(row, (x + 1).min(width - 1)));
+        (c.min(a).min(b), c.max(a).max(b))
+    };
+    volume.par_chunks_mut(width * nd).enumerate().for_each(|(y, row)| {
+        let (l, r) = (left.row(y), right.row(y));
+        for (x, costs) in row.chunks_exact_mut(nd).enumerate() {
+            let (lmin, lmax) = interval(l, x);
+            let il = grey(l, x);
+            for (k, c) in costs.iter_mut().enumerate() {
+                let xr = x as i64 - (range.min as i64 + k as i64);
+                if xr < 0 || xr as usize >= width {
+                    continue;
+                }
+                let xr = xr as usize;
+                let ir = grey(r, xr);
+                let (rmin, rmax) = interval(r, xr);
+                let d_lr = (il - rmax).max(rmin - il).max(0.0);
+                let d_rl = (ir - lmax).max(lmin - ir).max(0.0);
+                let bt = d_lr.min(d_rl).min(truncation);
+                *c = (f32::from(*c) + (weight * bt).round()).min(255.0) as u8;
+            }
+        }
+    });
+}
+
+/// [`sgm_reference`] with an optional AD term `(weight, truncation)` ([`add_ad_costs`]).
+pub(crate) fn sgm_reference_ad(
+    left: &GrayImage,
+    right: &GrayImage,
+    params: &crate::SgmParams,
+    ad: Option<(f32, f32)>,
+) -> crate::DisparityMap {
     let (width, height) = left.size();
     let nd = params.range.count();
     let census_bits = (params.census.width * params.census.height - 1) as u32;
@@ -267,6 +321,9 @@ pub(crate) fn sgm_reference(
     census_transform(right, params.census, &mut census_right);
     let mut cost = vec![0u8; width * height * nd];
     hamming_cost_volume(&census_left, &census_right, params.range, census_bits, &mut cost);
+    if let Some((weight, truncation)) = ad {
+        add_ad_costs(left, right, params.range, weight, truncation, &mut cost);
+    }
     let mut sum = vec![0u16; width * height * nd];
     let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
     aggregate_paths(left, &cost, nd, params.paths, params.p1, &p2, &mut sum);
@@ -284,5 +341,52 @@ pub(crate) fn sgm_reference(
     if params.median {
         disparity = crate::filter::median_3x3_reference(&disparity);
     }
-    disparity
+    crate::post::after_median(disparity, left, params).disparity
+}
+
+/// Measurement harness (not a check): runs the reference pipeline with an AD-census cost on
+/// the scenes dumped to `/tmp/acc_data` (raw little-endian u16 images and f32 ground truth,
+/// `list.txt` of `name width height ndisp`). `STEREO_AD="weight,truncation"` sets the AD term,
+/// `STEREO_P="p1,p2"` the penalties. Run with
+/// `cargo test -p stereo-disparity --release -- --ignored ad_census_measurement --nocapture`.
+#[test]
+#[ignore]
+fn ad_census_measurement() {
+    let Ok(list) = std::fs::read_to_string("/tmp/acc_data/list.txt") else { return };
+    let env = |k: &str| std::env::var(k).ok();
+    let ad = env("STEREO_AD").map(|v| {
+        let (a, b) = v.split_once(',').unwrap();
+        (a.parse::<f32>().unwrap(), b.parse::<f32>().unwrap())
+    });
+    let mut params = crate::SgmParams::default();
+    if let Some(v) = env("STEREO_P") {
+        let (a, b) = v.split_once(',').unwrap();
+        (params.p1, params.p2) = (a.parse().unwrap(), b.parse().unwrap());
+    }
+    let mut line = String::new();
+    for entry in list.lines() {
+        let f: Vec<&str> = entry.split(' ').collect();
+        let (w, h, nd): (usize, usize, i32) =
+            (f[1].parse().unwrap(), f[2].parse().unwrap(), f[3].parse().unwrap());
+        let read = |ext: &str| std::fs::read(format!("/tmp/acc_data/{}.{ext}", f[0])).unwrap();
+        let img = |b: Vec<u8>| {
+            GrayImage::from_vec(w, h, b.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect())
+                .unwrap()
+        };
+        let (l, r) = (img(read("l")), img(read("r")));
+        let gt: Vec<f32> =
+            read("gt").chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+        let p = crate::SgmParams { range: DisparityRange::new(0, nd).unwrap(), ..params.clone() };
+        let d = sgm_reference_ad(&l, &r, &p, ad);
+        let (mut n, mut bad) = (0usize, 0usize);
+        for (e, g) in d.as_slice().iter().zip(&gt) {
+            if g.is_finite() && *g > 0.0 {
+                n += 1;
+                let err = (f64::from(*e) - f64::from(*g)).abs();
+                bad += usize::from(e.is_nan() || err > 2.0);
+            }
+        }
+        line += &format!(" {:.2}", 100.0 * bad as f64 / n as f64);
+    }
+    println!("AD {ad:?} P1/P2 {}/{} bad2:{line}", params.p1, params.p2);
 }

@@ -1,10 +1,11 @@
 //! Semi-Global Matching: census cost volume, path aggregation, winner-takes-all, checks.
 
-use crate::aggregate::{aggregate_and_select, pass_state_bytes, Inputs, P2Table, MAX_P2};
-use crate::buffer::{give_back_volume, take_volume};
+use crate::aggregate::{aggregate_and_select, stream_and_select, Inputs, P2Table, MAX_P2};
+use crate::buffer::ZeroedBuffer;
 use crate::census::census_transform;
 use crate::cost::infeasible_cost;
-use crate::filter::median_3x3;
+use crate::memory;
+use crate::post::SgmOutput;
 use crate::wta::Selection;
 use crate::{check_pair, DisparityMap, Error, GrayImage, Image, SgmParams};
 
@@ -13,7 +14,14 @@ use crate::{check_pair, DisparityMap, Error, GrayImage, Image, SgmParams};
 /// Returns the left view's disparity map; NaN where no disparity in the range fits, or where the
 /// uniqueness or left-right check rejects the match.
 pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<DisparityMap, Error> {
+    sgm_detailed(left, right, params).map(|output| output.disparity)
+}
+
+/// [`sgm`] with the per-pixel [`crate::PixelStatus`] image: why each invalid pixel was rejected
+/// and, with [`SgmParams::fill`], which pixels were filled ([`SgmOutput::filled_mask`]).
+pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<SgmOutput, Error> {
     check_pair(left, right)?;
+    crate::post::check(params)?;
     params.census.check()?;
     let (width, height) = left.size();
     if width < params.census.width || height < params.census.height {
@@ -55,9 +63,8 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
         || census_transform(right, params.census, &mut census_right),
     );
 
-    // The only W·H·D buffer: the aggregated path costs (every entry is written before it is read,
-    // so a buffer left over from the previous call serves as well as a fresh one).
-    let mut sum = take_volume(width * height * nd);
+    let plan = memory::plan(width, height, params);
+    plan.check(width, height, params)?;
     let mut disparity = DisparityMap::new(width, height, f32::NAN);
     let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
     let inputs = Inputs {
@@ -76,28 +83,28 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
             subpixel: params.subpixel,
         },
     };
-    aggregate_and_select(&inputs, &mut sum.as_mut_slice()[..width * height * nd], disparity.as_mut_slice());
-    drop((census_left, census_right));
-    give_back_volume(sum);
-
-    if params.median {
-        disparity = median_3x3(&disparity);
+    if params.single_pass {
+        stream_and_select(&inputs, plan.stream_threads, plan.strips.overlap, disparity.as_mut_slice());
+    } else {
+        // The only volume: one strip of aggregated path costs (every entry is written before it
+        // is read, and the strips reuse it).
+        let len = plan.strips.rows.min(height) * width * nd;
+        let mut volume = ZeroedBuffer::<u16>::new(len);
+        aggregate_and_select(&inputs, plan.strips, volume.as_mut_slice(), disparity.as_mut_slice());
     }
-    Ok(disparity)
+    drop((census_left, census_right));
+
+    Ok(crate::post::finish(disparity, left, params))
 }
 
-/// The peak working memory [`sgm`] plans for a `width × height` pair, in bytes: the `u16`
-/// aggregated volume (`2·W·H·D`), both census images, the disparity map (twice while the median
-/// runs) and the `O(W·D)` path state of each of the two aggregation passes. The input images are
-/// not counted.
+/// The peak working memory [`sgm`] plans for a `width × height` pair, in bytes: both census
+/// images, the disparity map (twice while the median runs), the `O(W·D)` path state of each
+/// aggregation pass and the `u16` sum volume of one strip (`2·W·D` bytes per strip row; strips
+/// sized for speed by default, or to fit [`SgmParams::max_memory`]); in single-pass mode one row
+/// of sums per thread instead. The input images are not counted. If `max_memory` is too small
+/// to plan anything, the smallest plan (one-row strips), which [`sgm`] refuses.
 pub fn planned_memory_bytes(width: usize, height: usize, params: &SgmParams) -> usize {
-    let nd = params.range.count();
-    let pixels = width * height;
-    let sum = 2 * pixels * nd;
-    let census = 2 * 8 * pixels;
-    let disparity = 4 * pixels * if params.median { 2 } else { 1 };
-    let row_locks = height * 64;
-    sum + census + disparity + row_locks + 2 * pass_state_bytes(width, nd, params.paths)
+    memory::plan(width, height, params).bytes
 }
 
 #[cfg(test)]
@@ -174,7 +181,7 @@ mod tests {
             w in 9usize..90, h in 7usize..40, nd_frac in 0.0f64..1.0, min in -12i32..12, kind in 0u8..3,
             four in proptest::prelude::any::<bool>(), p1 in 1u16..60, p2_extra in 1u16..300, edge in 0u16..60,
             uniq in 0u32..20, lr in proptest::prelude::any::<Option<u8>>(), sub in 0u8..3, median in proptest::prelude::any::<bool>(),
-            window in 0usize..4, seed in proptest::prelude::any::<u64>(),
+            window in 0usize..4, seed in proptest::prelude::any::<u64>(), strip_rows in 1usize..40,
         ) {
             let nd = ((w as f64 * nd_frac.min(0.8)) as usize).max(1) as i32;
             let (cw, ch) = [(3, 3), (5, 5), (9, 7), (7, 9)][window];
@@ -190,27 +197,37 @@ mod tests {
                 lr_max_diff: lr.map(|v| f32::from(v % 4) * 0.75),
                 subpixel: [crate::Subpixel::None, crate::Subpixel::Parabola, crate::Subpixel::Equiangular][sub as usize],
                 median,
+                ..SgmParams::default()
             };
             let (left, right) = random_pair(w, h, kind, (seed % nd as u64) as i64 + i64::from(min), seed);
             let fast = sgm(&left, &right, &params).unwrap();
             let reference = crate::reference::sgm_reference(&left, &right, &params);
-            for (i, (a, b)) in fast.as_slice().iter().zip(reference.as_slice()).enumerate() {
+            // Strips whose backward warm-up reaches the bottom of the image are exact too.
+            let strips = crate::aggregate::StripPlan { rows: strip_rows, overlap: h };
+            let striped = crate::memory::tests::with_strips(strips, || sgm(&left, &right, &params).unwrap());
+            for (i, ((a, b), c)) in fast.as_slice().iter().zip(reference.as_slice()).zip(striped.as_slice()).enumerate() {
                 proptest::prop_assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "pixel {}: {} vs {}", i, a, b);
+                proptest::prop_assert!(c.to_bits() == b.to_bits() || (c.is_nan() && b.is_nan()), "strips of {} rows, pixel {}: {} vs {}", strip_rows, i, c, b);
             }
         }
     }
 
     #[test]
-    fn planned_memory_is_about_two_bytes_per_disparity_evaluation() {
+    fn planned_memory_is_one_strip_of_sums_plus_per_pixel_buffers() {
         for (w, h, nd) in [(640usize, 480usize, 64i32), (1280, 720, 128), (6000, 4000, 320)] {
             let params = SgmParams { range: DisparityRange::new(0, nd).unwrap(), ..SgmParams::default() };
             let planned = planned_memory_bytes(w, h, &params);
-            let volume = 2 * w * h * nd as usize;
-            // The volume, plus census (16 B/px), disparities (8 B/px) and O(W·D) path state.
+            let row = 2 * w * nd as usize;
+            // Census (16 B/px), disparities (8 B/px), O(W·D) path state, and 96.. rows of sums.
+            assert!(planned >= 24 * w * h + 96 * row.min(row * h / 96), "{w}x{h}/{nd}: {planned}");
             assert!(
-                planned >= volume && planned <= volume + 25 * w * h + 64 * w * nd as usize,
+                planned <= 25 * w * h + (16 << 20).max(100 * row) + 64 * w * nd as usize,
                 "{w}x{h}/{nd}: {planned}"
             );
+            let bounded = SgmParams { max_memory: Some(planned / 2 + 24 * w * h), ..params.clone() };
+            assert!(planned_memory_bytes(w, h, &bounded) <= planned / 2 + 24 * w * h);
+            let streaming = SgmParams { single_pass: true, ..params };
+            assert!(planned_memory_bytes(w, h, &streaming) < 25 * w * h + 256 * w * nd as usize);
         }
     }
 

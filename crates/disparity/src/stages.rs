@@ -3,7 +3,7 @@
 //! [`sgm`](crate::sgm) runs them fused; these entry points run each over a whole image so its
 //! throughput can be measured alone.
 
-use crate::aggregate::{aggregate_and_select, Inputs, P2Table};
+use crate::aggregate::{aggregate_and_select, stream_and_select, Inputs, P2Table};
 use crate::cost::infeasible_cost;
 use crate::simd::{self, padded_lanes};
 use crate::wta::Selection;
@@ -48,7 +48,7 @@ pub fn aggregate_and_select_disparities(
 ) -> DisparityMap {
     let (width, height) = left.size();
     let nd = params.range.count();
-    let mut sum = crate::buffer::take_volume(width * height * nd);
+    let plan = crate::memory::plan(width, height, params);
     let mut disparity = DisparityMap::new(width, height, f32::NAN);
     let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
     let inputs = Inputs {
@@ -67,8 +67,12 @@ pub fn aggregate_and_select_disparities(
             subpixel: params.subpixel,
         },
     };
-    aggregate_and_select(&inputs, &mut sum.as_mut_slice()[..width * height * nd], disparity.as_mut_slice());
-    crate::buffer::give_back_volume(sum);
+    if params.single_pass {
+        stream_and_select(&inputs, plan.stream_threads, plan.strips.overlap, disparity.as_mut_slice());
+    } else {
+        let mut volume = crate::buffer::ZeroedBuffer::<u16>::new(plan.strips.rows.min(height) * width * nd);
+        aggregate_and_select(&inputs, plan.strips, volume.as_mut_slice(), disparity.as_mut_slice());
+    }
     disparity
 }
 

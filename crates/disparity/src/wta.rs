@@ -2,7 +2,16 @@
 //! subpixel refinement, the uniqueness test and the left-right consistency check.
 
 use crate::simd::{self, Level};
+use crate::status::{tagged_nan, PixelStatus};
 use crate::{DisparityRange, Subpixel};
+
+/// The tagged NaN of a pixel that failed the left-right check: an occlusion when the right
+/// view's disparity at the matched pixel is larger (a nearer surface hides the pixel there),
+/// a mismatch otherwise.
+#[inline]
+fn lr_failure(right_disparity_larger: bool) -> f32 {
+    tagged_nan(if right_disparity_larger { PixelStatus::Occluded } else { PixelStatus::Mismatch })
+}
 
 /// What winner-takes-all keeps and how it refines.
 #[derive(Clone, Copy, Debug)]
@@ -172,7 +181,7 @@ fn select_row_generic(
     }
 
     for (x, o) in out[..width].iter_mut().enumerate() {
-        *o = f32::NAN;
+        *o = tagged_nan(PixelStatus::NoMatch);
         let ks = feasible_left(x, width, sel.range);
         if ks.is_empty() {
             continue;
@@ -183,6 +192,7 @@ fn select_row_generic(
             let second = ks.clone().filter(|k| k.abs_diff(best) > 1).map(|k| c[k]).min();
             if let Some(second) = second {
                 if u64::from(c[best]) * u64::from(100 + sel.uniqueness_ratio) > u64::from(second) * 100 {
+                    *o = tagged_nan(PixelStatus::Ambiguous);
                     continue;
                 }
             }
@@ -192,6 +202,7 @@ fn select_row_generic(
             let xr = x as i64 - d_int;
             let kr = scratch.right_index[width - 1 - xr as usize];
             if kr == NO_MATCH || (kr as f32 - best as f32).abs() > max_diff {
+                *o = lr_failure(kr != NO_MATCH && usize::from(kr) > best);
                 continue;
             }
         }
@@ -229,7 +240,7 @@ pub(crate) fn select_row_reference(
     }
 
     for (x, o) in out.iter_mut().enumerate() {
-        *o = f32::NAN;
+        *o = tagged_nan(PixelStatus::NoMatch);
         let ks = feasible_left(x, width, sel.range);
         if ks.is_empty() {
             continue;
@@ -245,6 +256,7 @@ pub(crate) fn select_row_reference(
             let second = ks.clone().filter(|k| k.abs_diff(best) > 1).map(|k| c[k]).min();
             if let Some(second) = second {
                 if u64::from(c[best]) * u64::from(100 + sel.uniqueness_ratio) > u64::from(second) * 100 {
+                    *o = tagged_nan(PixelStatus::Ambiguous);
                     continue;
                 }
             }
@@ -254,6 +266,7 @@ pub(crate) fn select_row_reference(
             let xr = x as i64 - d_int;
             let kr = right_best[xr as usize];
             if kr == usize::MAX || (kr as f32 - best as f32).abs() > max_diff {
+                *o = lr_failure(kr != usize::MAX && kr > best);
                 continue;
             }
         }

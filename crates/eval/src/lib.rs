@@ -32,6 +32,13 @@
 
 use std::fmt;
 
+mod folder;
+
+pub use folder::{
+    average, discover_scenes, evaluate_folder, evaluate_scene, format_table, try_evaluate_folder,
+    FolderError, SceneResult, SceneSpec,
+};
+
 use stereo_disparity::{DisparityMap, Image};
 
 /// Why metrics cannot be computed.

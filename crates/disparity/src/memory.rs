@@ -1,0 +1,134 @@
+//! The working-memory plan of [`crate::sgm`]: how many rows each strip of the two-pass
+//! aggregation holds, and what the whole call needs, so a caller can bound it
+//! ([`crate::SgmParams::max_memory`]) and report it ([`crate::planned_memory_bytes`]).
+
+use crate::aggregate::{pass_state_bytes, StripPlan};
+use crate::{Error, SgmParams};
+
+/// Rows below a strip over which the backward pass warms up its paths (and, in single-pass
+/// mode, rows above a thread's strip). SGM paths forget their start within a few dozen pixels:
+/// on the Middlebury scenes 32 rows change bad2 by at most a few hundredths of a point.
+pub(crate) const OVERLAP_ROWS: usize = 32;
+
+/// The default strip volume (bytes), when [`SgmParams::max_memory`] does not ask for less: small
+/// enough that the volume is mostly cache resident and cheap to fault in on a one-shot run, large
+/// enough that the warm-up rows cost little.
+pub(crate) const DEFAULT_STRIP_BYTES: usize = 16 << 20;
+
+/// Strips are at least this many rows (unless the budget forces fewer), so the warm-up (32 rows,
+/// backward pass only) stays a small share of the work.
+pub(crate) const MIN_DEFAULT_STRIP_ROWS: usize = 96;
+
+/// Bookkeeping per strip row (its lock and slices).
+const ROW_SLOT_BYTES: usize = 64;
+
+/// What [`crate::sgm`] will allocate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct MemoryPlan {
+    /// The strips of the two-pass aggregation (unused in single-pass mode).
+    pub strips: StripPlan,
+    /// Threads (= strips) of the single-pass aggregation.
+    pub stream_threads: usize,
+    /// Peak working memory, bytes.
+    pub bytes: usize,
+    /// The smallest plan still exceeds [`SgmParams::max_memory`] (then `bytes` is that plan's).
+    pub too_large: bool,
+}
+
+impl MemoryPlan {
+    /// An error if the plan does not fit the caller's bound.
+    pub(crate) fn check(&self, width: usize, height: usize, params: &SgmParams) -> Result<(), Error> {
+        if !self.too_large {
+            return Ok(());
+        }
+        Err(Error::InvalidParameter {
+            name: "max memory",
+            message: format!(
+                "{} bytes is too small for a {width}x{height} pair with {} disparities: at least {} \
+                 bytes are needed",
+                params.max_memory.unwrap_or(0),
+                params.range.count(),
+                self.bytes
+            ),
+        })
+    }
+}
+
+/// Plans the memory for a `width × height` pair within `params.max_memory` if possible.
+pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPlan {
+    let nd = params.range.count();
+    let pixels = width * height;
+    let census = 2 * 8 * pixels;
+    let disparity = 4 * pixels * if params.median { 2 } else { 1 };
+    let fixed = census + disparity;
+    let row_bytes = 2 * width * nd;
+    let (strips, stream_threads, bytes, too_large) = if params.single_pass {
+        let threads = rayon::current_num_threads().clamp(1, height.max(1));
+        let per_thread = pass_state_bytes(width, nd, params.paths) + row_bytes;
+        #[cfg(test)]
+        let threads = tests::STRIPS.get().map_or(threads, |s| s.rows);
+        let bytes = fixed + threads * per_thread;
+        #[cfg(test)]
+        let overlap = tests::STRIPS.get().map_or(OVERLAP_ROWS, |s| s.overlap);
+        #[cfg(not(test))]
+        let overlap = OVERLAP_ROWS;
+        (StripPlan { rows: height, overlap }, threads, bytes, params.max_memory.is_some_and(|m| bytes > m))
+    } else {
+        let fixed = fixed + 2 * pass_state_bytes(width, nd, params.paths);
+        let per_row = row_bytes + ROW_SLOT_BYTES;
+        let default_rows = (DEFAULT_STRIP_BYTES / row_bytes.max(1)).max(MIN_DEFAULT_STRIP_ROWS);
+        let mut rows = tuning("STEREO_DISPARITY_STRIP_ROWS").unwrap_or(default_rows).clamp(1, height.max(1));
+        let mut too_large = false;
+        if let Some(budget) = params.max_memory {
+            let fit = budget.saturating_sub(fixed) / per_row;
+            too_large = fit == 0;
+            rows = rows.min(fit.max(1));
+        }
+        // Even strips: the same volume, but no short last strip paying a full warm-up.
+        let count = height.div_ceil(rows.max(1)).max(1);
+        let rows = height.div_ceil(count).max(1);
+        let overlap = tuning("STEREO_DISPARITY_OVERLAP").unwrap_or(OVERLAP_ROWS);
+        #[cfg(test)]
+        let (rows, overlap) = tests::STRIPS.get().map_or((rows, overlap), |s| (s.rows, s.overlap));
+        (StripPlan { rows, overlap }, 1, fixed + rows * per_row, too_large)
+    };
+    MemoryPlan { strips, stream_threads, bytes, too_large }
+}
+
+/// A tuning override from the environment (for measurements only).
+fn tuning(name: &str) -> Option<usize> {
+    std::env::var(name).ok()?.parse().ok()
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use std::cell::Cell;
+
+    thread_local! {
+        /// Forces the strip plan of [`plan`] on this thread: two-pass strip rows and overlap, or
+        /// single-pass thread count (`rows`) and overlap.
+        pub(crate) static STRIPS: Cell<Option<StripPlan>> = const { Cell::new(None) };
+    }
+
+    /// Runs `f` with the strip plan forced to `strips`.
+    pub(crate) fn with_strips<R>(strips: StripPlan, f: impl FnOnce() -> R) -> R {
+        STRIPS.set(Some(strips));
+        let r = f();
+        STRIPS.set(None);
+        r
+    }
+
+    #[test]
+    fn a_budget_bounds_the_plan() {
+        let params = SgmParams { range: crate::DisparityRange::new(0, 320).unwrap(), ..SgmParams::default() };
+        let free = plan(6000, 4000, &params);
+        assert!(!free.too_large && free.strips.rows < 4000);
+        let bounded = plan(6000, 4000, &SgmParams { max_memory: Some(1 << 30), ..params.clone() });
+        assert!(!bounded.too_large && bounded.bytes <= 1 << 30, "{bounded:?}");
+        let tiny = plan(6000, 4000, &SgmParams { max_memory: Some(100 << 20), ..params.clone() });
+        assert!(tiny.too_large && tiny.check(6000, 4000, &params).is_err());
+        let small = plan(64, 48, &SgmParams { range: crate::DisparityRange::new(0, 16).unwrap(), ..params });
+        assert_eq!(small.strips.rows, 48, "a small image is one strip: exact SGM");
+    }
+}

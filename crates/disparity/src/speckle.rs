@@ -1,0 +1,103 @@
+//! Speckle removal: small connected regions of similar disparity are usually wrong matches
+//! (OpenCV's `filterSpeckles`; imageproc has no such filter).
+
+use crate::status::{tagged_nan, PixelStatus};
+use crate::DisparityMap;
+
+/// Invalidates every 4-connected region of valid pixels (neighbours joined when their
+/// disparities differ by at most `max_diff`) with fewer than `max_size` pixels; the removed
+/// pixels become NaN (tagged [`PixelStatus::Speckle`] inside the pipeline). Returns how many
+/// pixels were removed. `max_size` 0 or 1 removes nothing. O(W·H): one flood fill per region.
+pub fn remove_speckles(disparity: &mut DisparityMap, max_size: usize, max_diff: f32) -> usize {
+    if max_size <= 1 {
+        return 0;
+    }
+    let (w, h) = disparity.size();
+    let d = disparity.as_mut_slice();
+    const UNSEEN: u32 = u32::MAX;
+    let mut label = vec![UNSEEN; w * h];
+    let mut stack: Vec<u32> = Vec::new();
+    let mut region: Vec<u32> = Vec::new();
+    let mut removed = 0;
+    for start in 0..w * h {
+        if label[start] != UNSEEN || d[start].is_nan() {
+            continue;
+        }
+        label[start] = start as u32;
+        stack.push(start as u32);
+        region.clear();
+        // Only the first `max_size` members are remembered: a larger region is kept anyway.
+        while let Some(p) = stack.pop() {
+            let p = p as usize;
+            if region.len() < max_size {
+                region.push(p as u32);
+            }
+            let v = d[p];
+            let (x, y) = (p % w, p / w);
+            let mut visit = |q: usize| {
+                if label[q] == UNSEEN && !d[q].is_nan() && (d[q] - v).abs() <= max_diff {
+                    label[q] = start as u32;
+                    stack.push(q as u32);
+                }
+            };
+            if x > 0 {
+                visit(p - 1);
+            }
+            if x + 1 < w {
+                visit(p + 1);
+            }
+            if y > 0 {
+                visit(p - w);
+            }
+            if y + 1 < h {
+                visit(p + w);
+            }
+        }
+        if region.len() < max_size {
+            for &p in &region {
+                d[p as usize] = tagged_nan(PixelStatus::Speckle);
+            }
+            removed += region.len();
+        }
+    }
+    removed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn small_islands_go_large_regions_stay() {
+        // A 10x10 map at 5 px with a 2x2 island at 20 px and a 3x1 island at 5.5..6.5 (joined
+        // to the background: within max_diff of it, so it stays).
+        let mut d = DisparityMap::new(10, 10, 5.0);
+        for (x, y) in [(2, 2), (3, 2), (2, 3), (3, 3)] {
+            d.set(x, y, 20.0);
+        }
+        d.set(7, 7, 5.5);
+        d.set(8, 7, 6.0);
+        d.set(0, 9, f32::NAN);
+        let removed = remove_speckles(&mut d, 5, 1.0);
+        assert_eq!(removed, 4);
+        assert!(d.get(2, 2).is_nan() && d.get(3, 3).is_nan());
+        assert_eq!(crate::status::status_of(d.get(2, 2)), PixelStatus::Speckle);
+        assert_eq!((d.get(7, 7), d.get(8, 7), d.get(0, 0)), (5.5, 6.0, 5.0));
+        // A region of exactly max_size pixels stays.
+        let mut e = DisparityMap::new(10, 10, 5.0);
+        for (x, y) in [(2, 2), (3, 2), (2, 3), (3, 3)] {
+            e.set(x, y, 20.0);
+        }
+        assert_eq!(remove_speckles(&mut e, 4, 1.0), 0);
+        assert_eq!(remove_speckles(&mut e, 0, 1.0), 0);
+    }
+
+    #[test]
+    fn chains_of_small_steps_are_one_region() {
+        // A ramp rising 0.5 px per column: one region although the ends differ by 4.5 px.
+        let mut d = DisparityMap::from_fn(10, 1, |x, _| x as f32 * 0.5);
+        assert_eq!(remove_speckles(&mut d, 10, 1.0), 0);
+        assert_eq!(remove_speckles(&mut d, 11, 1.0), 10);
+        assert!(d.as_slice().iter().all(|v| v.is_nan()));
+    }
+}
