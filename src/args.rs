@@ -120,6 +120,10 @@ pub enum Command {
     Batch(Box<BatchArgs>),
     /// Join the per-shard summaries of `batch --shard K/N` runs into summary.json and summary.csv.
     BatchMerge(BatchMergeArgs),
+    /// Run the matcher on every scene of a folder with ground truth and score it (per scene and
+    /// on average): a folder with scenes.tsv, or Middlebury SCENE/im0.png, im1.png, disp0GT.pfm
+    /// (and calib.txt for ndisp) folders.
+    EvalFolder(Box<EvalFolderArgs>),
     /// Rig design calculator: distance, disparity in mm, depth resolution, field of view, table, chart.
     Calc(crate::calc::CalcArgs),
     /// Print what a file stereo-depth writes contains: EXR, PFM, PNG, PLY or stats JSON.
@@ -284,6 +288,25 @@ pub struct MatchArgs {
     #[arg(long, value_enum, default_value_t = MatcherArg::Sgm, help_heading = "Matching")]
     pub matcher: MatcherArg,
 
+    /// SGM preset; the options below override single parameters of it.
+    #[arg(long, value_enum, default_value_t = PresetArg::Balanced, help_heading = "Matching")]
+    pub preset: PresetArg,
+
+    /// SGM: a dense map: small speckles removed, then every invalid pixel filled (occlusions from
+    /// the background side, mismatches by interpolation).
+    #[arg(long, help_heading = "Matching")]
+    pub fill: bool,
+
+    /// SGM: invalidate connected regions of similar disparity (within 1 px) smaller than N
+    /// pixels; 0 disables [default: 0, or 400 with --fill].
+    #[arg(long, value_name = "N", help_heading = "Matching")]
+    pub speckle_size: Option<usize>,
+
+    /// SGM: aggregate in one top-down pass (3 directions with --paths 4, 5 with --paths 8):
+    /// faster and O(width x disparities) memory, somewhat less accurate.
+    #[arg(long, help_heading = "Matching")]
+    pub single_pass: bool,
+
     /// SGM: number of aggregation paths: 4 (horizontal and vertical) or 8 (also diagonals)
     #[arg(long, value_enum, help_heading = "Matching")]
     pub paths: Option<PathsArg>,
@@ -303,7 +326,13 @@ pub struct MatchArgs {
 
     /// Left-right consistency: largest allowed disagreement between the left and right
     /// disparity maps, pixels.
-    #[arg(long, value_name = "PX", conflicts_with = "no_lr_check", help_heading = "Matching")]
+    #[arg(
+        long,
+        value_name = "PX",
+        conflicts_with = "no_lr_check",
+        allow_negative_numbers = true,
+        help_heading = "Matching"
+    )]
     pub lr_max_diff: Option<f32>,
 
     /// Disable the left-right consistency check.
@@ -321,6 +350,63 @@ pub struct MatchArgs {
     /// BM: window cost.
     #[arg(long, value_enum, help_heading = "Matching")]
     pub bm_cost: Option<BmCostArg>,
+
+    /// Largest image accepted, in pixels; suffixes K, M, G are 10^3, 10^6, 10^9 (e.g. 250M). An
+    /// image is checked from its header, before it is decoded [default: 100M].
+    #[arg(long, value_name = "PIXELS", value_parser = parse_pixels, allow_negative_numbers = true,
+          help_heading = "Limits")]
+    pub max_pixels: Option<u64>,
+
+    /// Working memory one pair may use, bytes; suffixes K, M, G, T are powers of 1024 (e.g. 4G,
+    /// 512M). SGM then aggregates in strips that fit; a pair that cannot fit is refused before
+    /// its images are decoded [default: the memory available (MemAvailable)].
+    #[arg(long, value_name = "SIZE", value_parser = parse_size, allow_negative_numbers = true,
+          help_heading = "Limits")]
+    pub max_memory: Option<u64>,
+}
+
+/// `N` with an optional suffix (case-insensitive): `K`, `M`, `G`, `T` times `unit`, `unit`²...
+fn parse_scaled(text: &str, unit: u64, what: &str) -> Result<u64, String> {
+    let text = text.trim();
+    let (digits, power) = match text.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => {
+            let power = match c.to_ascii_uppercase() {
+                'K' => 1,
+                'M' => 2,
+                'G' => 3,
+                'T' => 4,
+                _ => return Err(format!("unknown suffix {c:?} (want K, M, G or T)")),
+            };
+            (&text[..i], power)
+        }
+        _ => (text, 0),
+    };
+    let n: u64 = digits.parse().map_err(|_| format!("not a whole number of {what}: {text:?}"))?;
+    let value = unit.checked_pow(power).and_then(|scale| n.checked_mul(scale)).ok_or("too large")?;
+    if value == 0 {
+        return Err("must be greater than 0".into());
+    }
+    Ok(value)
+}
+
+/// `--max-pixels`: decimal suffixes (megapixels).
+pub fn parse_pixels(text: &str) -> Result<u64, String> {
+    parse_scaled(text, 1000, "pixels")
+}
+
+/// `--max-memory`: binary suffixes (`4G` = 4 GiB).
+pub fn parse_size(text: &str) -> Result<u64, String> {
+    parse_scaled(text, 1024, "bytes")
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PresetArg {
+    /// 3 path directions in a single pass: the fastest.
+    Fast,
+    /// 8 paths (the default).
+    Balanced,
+    /// Balanced plus an edge-aware weighted median: fewer errors at depth edges, slower.
+    Accurate,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -375,6 +461,23 @@ pub struct EvalArgs {
     pub gt_scale: f32,
 
     /// Print the metrics as JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `stereo-depth eval-folder DIR`.
+#[derive(Debug, Args)]
+pub struct EvalFolderArgs {
+    /// Folder of scenes with ground truth.
+    #[arg(value_name = "DIR")]
+    pub dir: PathBuf,
+
+    /// The matcher and its options, as for the pair command (the disparity range defaults to each
+    /// scene's ndisp).
+    #[command(flatten)]
+    pub matching: MatchArgs,
+
+    /// Print the per-scene metrics and their average as JSON.
     #[arg(long)]
     pub json: bool,
 }

@@ -4,14 +4,14 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use stereo_disparity::{BmCost, BmParams, DisparityRange, PathCount, SgmParams, Subpixel};
+use stereo_disparity::{BmCost, BmParams, DisparityRange, PathCount, Preset, SgmParams, Subpixel};
 use stereo_triangulation::Rig;
 
 use stereo_io::Calib;
 
 use crate::args::{
-    BatchArgs, BatchMergeArgs, BmCostArg, EvalArgs, MatchArgs, MatcherArg, PairArgs, PathsArg, PreviewOfArg,
-    RigArgs, SubpixelArg,
+    BatchArgs, BatchMergeArgs, BmCostArg, EvalArgs, MatchArgs, MatcherArg, PairArgs, PathsArg, PresetArg,
+    PreviewOfArg, RigArgs, SubpixelArg,
 };
 use crate::discover::{Pattern, Shard};
 
@@ -69,6 +69,8 @@ pub struct RigFlags {
     pub sensor_width_mm: Option<f64>,
     /// The --calib file, read.
     pub calib: Option<Calib>,
+    /// Its path, for messages.
+    pub calib_path: Option<PathBuf>,
 }
 
 impl RigFlags {
@@ -78,6 +80,7 @@ impl RigFlags {
         let mut flags = RigFlags::check(args)?;
         if let Some(path) = &args.calib {
             flags.calib = Some(stereo_io::read_calib(path)?);
+            flags.calib_path = Some(path.clone());
         }
         Ok(flags)
     }
@@ -117,6 +120,7 @@ impl RigFlags {
             principal_point,
             sensor_width_mm: args.sensor_width,
             calib: None,
+            calib_path: None,
         };
         // Every value given is checked now, with stand-ins for the others.
         let rig = Rig::from_datasheet(
@@ -193,7 +197,10 @@ impl RigFlags {
                 Rig::from_datasheet(baseline_mm, focal, pixel).map_err(rig_error)?
             }
             _ => Rig::from_focal_px(baseline_mm, focal_px).map_err(|err| match calib {
-                Some(_) if self.focal_px.is_none() => usage!("calib.txt: {err}"),
+                Some(_) if self.focal_px.is_none() => match (&self.calib, &self.calib_path) {
+                    (Some(_), Some(path)) => usage!("{}: {err}", path.display()),
+                    _ => usage!("calib.txt: {err}"),
+                },
                 _ => rig_error(err),
             })?,
         };
@@ -235,6 +242,31 @@ pub struct MatchSettings {
     pub max_disparity: Option<i32>,
     /// The range is filled in once the width is known.
     pub matcher: Matcher,
+    pub limits: Limits,
+}
+
+/// Refusal limits, checked before an image is decoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// `--max-pixels`: largest image, pixels.
+    pub max_pixels: u64,
+    /// `--max-memory`: working memory of one pair, bytes; `None` = what the system has available.
+    pub max_memory: Option<u64>,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits { max_pixels: stereo_io::DEFAULT_MAX_PIXELS, max_memory: None }
+    }
+}
+
+impl Limits {
+    fn from_args(args: &MatchArgs) -> Self {
+        Limits {
+            max_pixels: args.max_pixels.unwrap_or(stereo_io::DEFAULT_MAX_PIXELS),
+            max_memory: args.max_memory,
+        }
+    }
 }
 
 impl MatchSettings {
@@ -249,7 +281,12 @@ impl MatchSettings {
                 ));
             }
         }
-        Ok(MatchSettings { min_disparity: args.min_disparity, max_disparity: args.max_disparity, matcher })
+        Ok(MatchSettings {
+            min_disparity: args.min_disparity,
+            max_disparity: args.max_disparity,
+            matcher,
+            limits: Limits::from_args(args),
+        })
     }
 }
 
@@ -309,6 +346,7 @@ pub struct PairConfig {
     /// The image size the rig was calibrated for (a Middlebury calib.txt's width and height),
     /// checked against the images before matching.
     pub expected_size: Option<(usize, usize)>,
+    pub limits: Limits,
 }
 
 impl PairConfig {
@@ -379,6 +417,7 @@ impl PairConfig {
             disparity_png: args.disparity_png,
             quiet: args.quiet,
             expected_size: calib.and_then(|c| Some((c.width?, c.height?))),
+            limits: settings.limits,
         };
         config.check_paths()?;
         Ok(config)
@@ -453,8 +492,20 @@ impl PairConfig {
     }
 }
 
+/// `path` made absolute with `..`, `.` and symbolic links of its folder resolved (the folder
+/// usually exists; the file itself may not yet), so two spellings of one file compare equal.
 fn absolute(path: &Path) -> PathBuf {
-    std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
+    if let Ok(real) = std::fs::canonicalize(path) {
+        return real;
+    }
+    let folder = match path.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent,
+        _ => Path::new("."),
+    };
+    match (std::fs::canonicalize(folder), path.file_name()) {
+        (Ok(folder), Some(name)) => folder.join(name),
+        _ => std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()),
+    }
 }
 
 /// `LEFTSTEM_depth.exr` in the current directory.
@@ -512,7 +563,17 @@ fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
         MatcherArg::Sgm => {
             reject(args.block_size.is_some(), "--block-size", "bm")?;
             reject(args.bm_cost.is_some(), "--bm-cost", "bm")?;
-            let defaults = SgmParams::default();
+            let defaults = SgmParams::preset(match args.preset {
+                PresetArg::Fast => Preset::Fast,
+                PresetArg::Balanced => Preset::Balanced,
+                PresetArg::Accurate => Preset::Accurate,
+            });
+            let defaults = SgmParams {
+                speckle_size: args.speckle_size.unwrap_or(defaults.speckle_size),
+                single_pass: args.single_pass || defaults.single_pass,
+                ..defaults
+            };
+            let defaults = if args.fill { defaults.with_fill() } else { defaults };
             let params = SgmParams {
                 paths: match args.paths {
                     Some(PathsArg::Four) => PathCount::Four,
@@ -532,6 +593,10 @@ fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
             reject(args.paths.is_some(), "--paths", "sgm")?;
             reject(args.p1.is_some(), "--p1", "sgm")?;
             reject(args.p2.is_some(), "--p2", "sgm")?;
+            reject(args.preset != PresetArg::Balanced, "--preset", "sgm")?;
+            reject(args.fill, "--fill", "sgm")?;
+            reject(args.speckle_size.is_some(), "--speckle-size", "sgm")?;
+            reject(args.single_pass, "--single-pass", "sgm")?;
             let defaults = BmParams::default();
             let block_size = args.block_size.unwrap_or(defaults.block_size);
             if block_size < 3 || block_size % 2 == 0 {

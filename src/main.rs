@@ -10,7 +10,9 @@ mod calc;
 mod config;
 mod discover;
 mod eval_cmd;
+mod eval_folder;
 mod info;
+mod limits;
 mod pair;
 mod report;
 
@@ -39,9 +41,17 @@ fn run() -> anyhow::Result<ExitCode> {
     let cli = match Cli::try_parse_with_defaults() {
         Ok(cli) => cli,
         Err(err) => {
-            // --help and --version end up here too, with exit status 0.
-            err.print().context("cannot print the usage message")?;
-            return Ok(ExitCode::from(err.exit_code().clamp(0, 255) as u8));
+            let code = ExitCode::from(err.exit_code().clamp(0, 255) as u8);
+            // --help and --version end up here too, with exit status 0, and so does the help
+            // shown when no argument is given: printed whole.
+            if !err.use_stderr()
+                || err.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+            {
+                err.print().context("cannot print the usage message")?;
+                return Ok(code);
+            }
+            let _ = writeln!(io::stderr().lock(), "stereo-depth: error: {}", clap_one_line(&err));
+            return Ok(code);
         }
     };
     let mut stdout = io::stdout().lock();
@@ -56,6 +66,7 @@ fn run() -> anyhow::Result<ExitCode> {
         }
         Some(Command::Calc(args)) => calc::run(args, &mut stdout)?,
         Some(Command::Info(args)) => info::run(&args.file, &mut stdout)?,
+        Some(Command::EvalFolder(args)) => eval_folder::run(&args, &mut stdout)?,
         Some(Command::Eval(args)) => {
             let config = EvalConfig::from_args(args)?;
             eval_cmd::run(&config, &mut stdout)?;
@@ -73,6 +84,22 @@ fn run() -> anyhow::Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// clap's error as one line: its message, and its tip when it has one (the usage lines and the
+/// pointer to --help are left out).
+fn clap_one_line(err: &clap::Error) -> String {
+    let text = err.render().to_string();
+    let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+    let first = lines.next().unwrap_or("invalid arguments");
+    let mut message = first.strip_prefix("error: ").unwrap_or(first).to_string();
+    for line in lines {
+        if let Some(tip) = line.strip_prefix("tip: ") {
+            message.push_str("; ");
+            message.push_str(tip);
+        }
+    }
+    message
 }
 
 fn is_broken_pipe(err: &anyhow::Error) -> bool {

@@ -11,6 +11,7 @@ use anyhow::{bail, Context, Result};
 use stereo_disparity::{block_match, sgm, DisparityMap, GrayImage};
 
 use crate::config::{Matcher, PairConfig, PreviewOf, UsageError};
+use crate::limits;
 use crate::report::{self, DepthResolution, MatcherReport, Outputs, RigReport, Stats, Summary, Timings};
 use stereo_triangulation::{DepthStats, DisparityStats};
 
@@ -33,22 +34,25 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     let start = Instant::now();
     check_output_folders(config)?;
 
+    // Headers first: sizes and memory are checked before any pixel is decoded.
     let t = Instant::now();
-    let left = stereo_io::load_gray(&config.left).context("cannot read the left image")?;
-    let right = stereo_io::load_gray(&config.right).context("cannot read the right image")?;
-    let load = t.elapsed();
-    if left.size() != right.size() {
+    let limits = &config.limits;
+    let left_header = limits::probe(&config.left, limits).context("cannot read the left image")?;
+    let right_header = limits::probe(&config.right, limits).context("cannot read the right image")?;
+    let size = (left_header.width, left_header.height);
+    let right_size = (right_header.width, right_header.height);
+    if size != right_size {
         bail!(
             "{} is {}x{} but {} is {}x{}; a rectified pair has equal sizes",
             config.left.display(),
-            left.width(),
-            left.height(),
+            size.0,
+            size.1,
             config.right.display(),
-            right.width(),
-            right.height()
+            right_size.0,
+            right_size.1
         );
     }
-    let (width, height) = left.size();
+    let (width, height) = size;
     if let Some((w, h)) = config.expected_size {
         if (w, h) != (width, height) {
             bail!(
@@ -61,9 +65,23 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     let range = config.resolve_range(width)?;
     let mut matcher = config.matcher.clone();
     matcher.set_range(range);
+    let other = limits::other_bytes(&left_header, &right_header, config.points.is_some());
+    limits::fit_memory(&mut matcher, &config.left, size, other, limits)?;
+
+    let left = stereo_io::load_gray_limited(&config.left, limits.max_pixels)
+        .context("cannot read the left image")?;
+    let right = stereo_io::load_gray_limited(&config.right, limits.max_pixels)
+        .context("cannot read the right image")?;
+    let load = t.elapsed();
+    // The headers were read a moment ago; a file replaced since is caught here.
+    for (path, image) in [(&config.left, &left), (&config.right, &right)] {
+        if image.size() != size {
+            bail!("{} changed while it was being read", path.display());
+        }
+    }
 
     let t = Instant::now();
-    let disparity = run_matcher(&matcher, &left, &right)?;
+    let disparity = run_matcher(&matcher, &left, &right, &config.left)?;
     let match_time = t.elapsed();
     drop((left, right));
 
@@ -101,7 +119,8 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
         depth_png_too_deep = Some(too_deep);
     }
     if let (Some(path), Some(setup)) = (&config.points, &config.rig) {
-        let colour = stereo_io::load_rgb8(&config.left).context("cannot read the left image's colours")?;
+        let colour = stereo_io::load_rgb8_limited(&config.left, limits.max_pixels)
+            .context("cannot read the left image's colours")?;
         if colour.size() != disparity.size() {
             bail!("{} changed while it was being processed", config.left.display());
         }
@@ -199,7 +218,12 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     Ok(stats)
 }
 
-fn run_matcher(matcher: &Matcher, left: &GrayImage, right: &GrayImage) -> Result<DisparityMap> {
+pub(crate) fn run_matcher(
+    matcher: &Matcher,
+    left: &GrayImage,
+    right: &GrayImage,
+    path: &Path,
+) -> Result<DisparityMap> {
     let result = match matcher {
         Matcher::Sgm(params) => sgm(left, right, params),
         Matcher::Bm(params) => block_match(left, right, params),
@@ -211,7 +235,11 @@ fn run_matcher(matcher: &Matcher, left: &GrayImage, right: &GrayImage) -> Result
             Error::EmptyRange { .. } | Error::RangeWiderThanImage { .. } | Error::InvalidParameter { .. } => {
                 UsageError(err.to_string()).into()
             }
-            _ => anyhow::Error::new(err).context(format!("{} matching failed", matcher.name())),
+            _ => anyhow::Error::new(err).context(format!(
+                "{}: {} matching failed",
+                path.display(),
+                matcher.name()
+            )),
         }
     })
 }

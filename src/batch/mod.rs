@@ -272,6 +272,7 @@ fn process(config: &BatchConfig, job: &Job) -> Result<Stats> {
             Err(err) if err.kind() == std::io::ErrorKind::NotFound => {}
             Err(err) => return Err(err).with_context(|| format!("cannot replace {}", path.display())),
         }
+        remove_stale_temporaries(&path);
     }
     let depth = out.join(&job.depth);
     if let Some(folder) = depth.parent() {
@@ -285,7 +286,13 @@ fn process(config: &BatchConfig, job: &Job) -> Result<Stats> {
         _ => None,
     };
     let calib = config.rig.calib(found.as_ref());
-    let rig = config.rig.resolve(found.as_ref())?;
+    let rig = config.rig.resolve(found.as_ref()).map_err(|err| match (&job.spec.calib, found.is_some()) {
+        // The message says "calib.txt"; name the scene's file.
+        (Some(path), true) if err.0.starts_with("calib.txt: ") => {
+            UsageError(format!("{}: {}", config.input.join(path).display(), &err.0["calib.txt: ".len()..]))
+        }
+        _ => err,
+    })?;
     let settings = &config.matching;
     let max_disparity = settings.max_disparity.or_else(|| {
         let ndisp = calib?.ndisp?;
@@ -309,8 +316,27 @@ fn process(config: &BatchConfig, job: &Job) -> Result<Stats> {
         disparity_png: job.disparity_png.as_ref().map(|p| out.join(p)),
         quiet: true,
         expected_size: calib.and_then(|c| Some((c.width?, c.height?))),
+        limits: settings.limits,
     };
     pair::process(&pair)
+}
+
+/// Removes the temporary files an interrupted run left beside `path` (`.NAME.tmp-PID-N`, see
+/// [`stereo_io::atomic_temp_path`]); best effort. Only the pair being redone owns these names.
+fn remove_stale_temporaries(path: &Path) {
+    let (Some(folder), Some(name)) = (path.parent(), path.file_name().and_then(|n| n.to_str())) else {
+        return;
+    };
+    let prefix = format!(".{name}.tmp-");
+    let own = format!("{prefix}{}-", std::process::id());
+    let Ok(entries) = std::fs::read_dir(folder) else { return };
+    for entry in entries.flatten() {
+        let file_name = entry.file_name();
+        let Some(file) = file_name.to_str() else { continue };
+        if file.starts_with(&prefix) && !file.starts_with(&own) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 fn fill(row: &mut Row, stats: &Stats) {

@@ -63,6 +63,20 @@ impl Run {
         self.stderr.trim_end()
     }
 
+    /// Exit status `code` (never 101) and exactly one `stereo-depth: ` line on stderr (an error,
+    /// or the batch command's failure count).
+    #[track_caller]
+    pub fn assert_error_line(&self, code: i32) -> &str {
+        assert_ne!(self.code, Some(101), "panicked:\n{}", self.stderr);
+        assert_eq!(self.code, Some(code), "stdout:\n{}\nstderr:\n{}", self.stdout, self.stderr);
+        assert!(
+            self.stderr.starts_with("stereo-depth: ") && self.stderr.lines().count() == 1,
+            "stderr is not one line: {:?}",
+            self.stderr
+        );
+        self.stderr.trim_end()
+    }
+
     /// The path printed as `WHAT: PATH` on stdout.
     pub fn printed_path(&self, what: &str) -> Option<PathBuf> {
         let prefix = format!("{what}: ");

@@ -250,7 +250,8 @@ impl Default for SgmParams {
 /// [`SgmParams::preset`]. Measurements in `docs/accuracy.md`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Preset {
-    /// Four paths: about half the aggregation work, somewhat more streaking.
+    /// Three path directions (→ ↓ ←) in one top-down pass, like OpenCV's SGBM_3WAY: the
+    /// fastest mode, with O(width × disparities) memory per thread.
     Fast,
     /// The default parameters ([`SgmParams::default`]).
     #[default]
@@ -266,7 +267,7 @@ impl SgmParams {
     pub fn preset(preset: Preset) -> Self {
         let balanced = SgmParams::default();
         match preset {
-            Preset::Fast => SgmParams { paths: PathCount::Four, ..balanced },
+            Preset::Fast => SgmParams { paths: PathCount::Four, single_pass: true, ..balanced },
             Preset::Balanced => balanced,
             Preset::Accurate => SgmParams { wmf_radius: 5, wmf_sigma_color: 20.0, ..balanced },
         }

@@ -42,13 +42,16 @@ mod raster;
 pub use atomic::{atomic_temp_path, write_atomic};
 pub use calib::{parse_calib, read_calib, Calib};
 pub use exr::{exr_channel_names, read_exr_channel, write_exr};
-pub use pfm::{encode_pfm, read_pfm, write_pfm};
+pub use pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
 pub use ply::{encode_ply, read_ply_info, write_ply, PlyInfo, PlyProperty, PlyVertex};
 pub use png16::{
     depth_to_mm, disparity_to_kitti, read_png_info, write_png16, PngInfo, DEPTH_PNG_MAX_MM, KITTI_SCALE,
 };
 pub use preview::{label as preview_label, render_preview, turbo, write_png_rgb8, ColourScale, Preview};
-pub use raster::{load_gray, load_rgb8};
+pub use raster::{
+    decode_gray, load_gray, load_gray_limited, load_rgb8, load_rgb8_limited, probe_image, ImageHeader,
+    DEFAULT_MAX_PIXELS,
+};
 
 /// I/O errors, each naming the file.
 #[derive(Debug, thiserror::Error)]

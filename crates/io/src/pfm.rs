@@ -53,11 +53,20 @@ impl HeaderReader<'_> {
 /// Reads a grey PFM (`Pf`) disparity map, top row first; values as stored (bit-exact, so NaN
 /// and inf are preserved). Either endianness is accepted.
 pub fn read_pfm(path: &Path) -> Result<Image<f32>, Error> {
+    if path.is_dir() {
+        return Err(format_err(path, "is a directory, not a PFM file"));
+    }
     let bytes = std::fs::read(path).map_err(io_err(path))?;
+    decode_pfm(&bytes, path)
+}
+
+/// [`read_pfm`] of bytes already in memory; errors name `path`. Nothing is allocated for the
+/// pixels before the data is known to hold them all.
+pub fn decode_pfm(bytes: &[u8], path: &Path) -> Result<Image<f32>, Error> {
     if bytes.is_empty() {
         return Err(format_err(path, "empty file, not a PFM image"));
     }
-    let mut header = HeaderReader { bytes: &bytes, pos: 0 };
+    let mut header = HeaderReader { bytes, pos: 0 };
     let fail = |m: String| format_err(path, m);
     let magic = header.token().map_err(fail)?;
     match magic.as_str() {

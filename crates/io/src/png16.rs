@@ -94,7 +94,7 @@ pub struct PngInfo {
 
 /// Reads an image and summarises its first channel (see [`PngInfo`]).
 pub fn read_png_info(path: &Path) -> Result<PngInfo, Error> {
-    let img = raster::decode(path)?;
+    let img = raster::decode(path, raster::DEFAULT_MAX_PIXELS)?;
     let (width, height) = (img.width() as usize, img.height() as usize);
     let channels = img.color().channel_count();
     let bit_depth = (img.color().bits_per_pixel() / u16::from(channels)) as u8;

@@ -1,0 +1,114 @@
+//! Presets, the dense `--fill` output and `eval-folder`, end to end on the sample scene.
+
+mod common;
+
+use std::fs;
+
+use common::{run_in, s, slanted};
+
+/// A Middlebury-style scene folder (`im0.png`, `im1.png`, `disp0GT.pfm`, `calib.txt`) made from
+/// the sample scene.
+fn middlebury_folder(root: &std::path::Path) -> std::path::PathBuf {
+    let scene = root.join("slanted");
+    fs::create_dir_all(&scene).unwrap();
+    fs::copy(slanted("left.png"), scene.join("im0.png")).unwrap();
+    fs::copy(slanted("right.png"), scene.join("im1.png")).unwrap();
+    fs::copy(slanted("disp0GT.pfm"), scene.join("disp0GT.pfm")).unwrap();
+    fs::write(
+        scene.join("calib.txt"),
+        "cam0=[3000 0 143.5; 0 3000 107.5; 0 0 1]\ncam1=[3000 0 143.5; 0 3000 107.5; 0 0 1]\n\
+         doffs=0\nbaseline=80\nwidth=288\nheight=216\nndisp=64\n",
+    )
+    .unwrap();
+    scene
+}
+
+fn json(text: &str) -> serde_json::Value {
+    serde_json::from_str(text).unwrap_or_else(|e| panic!("not JSON ({e}): {text}"))
+}
+
+#[test]
+fn eval_folder_scores_like_the_pair_command_and_eval() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("scenes");
+    let scene = middlebury_folder(&root);
+    let run = run_in(dir.path(), &["eval-folder", s(&root), "--json"]);
+    run.assert_success();
+    let folder = json(&run.stdout);
+    let scenes = folder["scenes"].as_array().unwrap();
+    assert_eq!(scenes.len(), 1);
+    assert_eq!(scenes[0]["ndisp"], 64, "ndisp comes from calib.txt");
+
+    // The same matcher through the pair command, scored by `eval`: identical metrics.
+    let pfm = dir.path().join("d.pfm");
+    run_in(
+        dir.path(),
+        &[
+            s(&scene.join("im0.png")),
+            s(&scene.join("im1.png")),
+            "--max-disparity",
+            "64",
+            "--disparity",
+            s(&pfm),
+        ],
+    )
+    .assert_success();
+    let eval = run_in(dir.path(), &["eval", s(&pfm), s(&scene.join("disp0GT.pfm")), "--json"]);
+    eval.assert_success();
+    let single = json(&eval.stdout);
+    for key in ["bad1", "bad2", "bad4", "density"] {
+        assert_eq!(scenes[0]["metrics"][key], single["metrics"][key], "{key}");
+    }
+    assert_eq!(folder["average"]["bad2"], single["metrics"]["bad2"]);
+
+    let table = run_in(dir.path(), &["eval-folder", s(&root)]);
+    table.assert_success();
+    assert!(table.stdout.lines().any(|l| l.starts_with("slanted")), "{}", table.stdout);
+    assert!(table.stdout.lines().any(|l| l.starts_with("average")), "{}", table.stdout);
+}
+
+#[test]
+fn fill_gives_a_dense_map_that_scores_better() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("scenes");
+    middlebury_folder(&root);
+    let score = |extra: &[&str]| {
+        let mut args = vec!["eval-folder", s(&root), "--json"];
+        args.extend(extra);
+        let run = run_in(dir.path(), &args);
+        run.assert_success();
+        json(&run.stdout)["scenes"][0]["metrics"].clone()
+    };
+    let sparse = score(&[]);
+    let dense = score(&["--fill"]);
+    assert_eq!(dense["density"].as_f64().unwrap(), 100.0);
+    assert!(sparse["density"].as_f64().unwrap() < 100.0);
+    // Holes count as errors: filling the occlusion bands from the background side must win.
+    let (b_sparse, b_dense) = (sparse["bad2"].as_f64().unwrap(), dense["bad2"].as_f64().unwrap());
+    assert!(b_dense < b_sparse, "bad2 with --fill {b_dense} is not below {b_sparse}");
+}
+
+#[test]
+fn presets_are_reported_and_only_for_sgm() {
+    let dir = tempfile::tempdir().unwrap();
+    let stats = dir.path().join("s.json");
+    let (l, r) = (slanted("left.png"), slanted("right.png"));
+    let base = [s(&l), s(&r), "--max-disparity", "64", "--disparity", "d.pfm", "--stats", s(&stats)];
+    let mut fast = base.to_vec();
+    fast.extend(["--preset", "fast"]);
+    run_in(dir.path(), &fast).assert_success();
+    let matcher = json(&fs::read_to_string(&stats).unwrap())["matcher"].clone();
+    assert_eq!((matcher["paths"].as_u64(), matcher["single_pass"].as_bool()), (Some(3), Some(true)));
+
+    let mut accurate = base.to_vec();
+    accurate.extend(["--preset", "accurate", "--fill"]);
+    run_in(dir.path(), &accurate).assert_success();
+    let matcher = json(&fs::read_to_string(&stats).unwrap())["matcher"].clone();
+    assert!(matcher["weighted_median_radius"].as_u64().unwrap() > 0);
+    assert_eq!(matcher["fill"].as_bool(), Some(true));
+
+    let mut bm = base.to_vec();
+    bm.extend(["--matcher", "bm", "--preset", "accurate"]);
+    let err = run_in(dir.path(), &bm);
+    assert!(err.assert_error(2).contains("--preset"));
+}
