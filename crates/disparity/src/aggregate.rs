@@ -26,6 +26,7 @@
 
 use std::sync::Mutex;
 
+use crate::cost::{AdRows, BtRow};
 use crate::simd::{self, padded_lanes, Level, PathIn, PAD};
 use crate::wta::{select_row, Selection, WtaScratch};
 use crate::{DisparityRange, GrayImage, Image, PathCount};
@@ -70,6 +71,8 @@ pub(crate) struct Inputs<'a> {
     pub image: &'a GrayImage,
     pub census_left: &'a Image<u64>,
     pub census_right: &'a Image<u64>,
+    /// The right image and `(weight, cap)` of the AD-census term, if the cost has one.
+    pub ad: Option<(&'a GrayImage, u16, u16)>,
     pub range: DisparityRange,
     /// Matching cost of a disparity that points outside the right image.
     pub worst: u16,
@@ -223,6 +226,9 @@ struct PassState {
     diag_b: [RowPaths; 2],
     horizontal: [Vec<u16>; 2],
     zero: Vec<u16>,
+    /// The current row's Birchfield–Tomasi inputs (AD-census only).
+    bt_left: BtRow,
+    bt_right: BtRow,
     scratch: WtaScratch,
 }
 
@@ -241,6 +247,8 @@ impl PassState {
             diag_b: RowPaths::pair(diagonal_width, stride),
             horizontal: [vec![PAD; stride], vec![PAD; stride]],
             zero: vec![0; stride],
+            bt_left: BtRow::default(),
+            bt_right: BtRow::default(),
             scratch: WtaScratch::new(width),
         }
     }
@@ -416,6 +424,11 @@ fn step_row(
     state.prev_y = Some(y);
     let row = inputs.image.row(y);
     let prev_row = inputs.image.row(prev_y);
+    let ad = inputs.ad.map(|(right, weight, cap)| {
+        state.bt_left.fill(row, false);
+        state.bt_right.fill(right.row(y), true);
+        AdRows { left: &state.bt_left, right: &state.bt_right, weight, cap }
+    });
     simd::cost_row(
         simd::features(),
         inputs.census_left.row(y),
@@ -423,6 +436,7 @@ fn step_row(
         inputs.range.min,
         nd,
         inputs.worst,
+        ad,
         &mut state.cost,
     );
     let store = !sum.is_empty();
@@ -587,7 +601,8 @@ mod tests {
                 select_row_reference(costs, w, nd, selection, &mut right_best, out);
             }
             let inputs = Inputs {
-                image: &left, census_left: &cl, census_right: &cr, range, worst: crate::cost::infeasible_cost(24),
+                image: &left, census_left: &cl, census_right: &cr, ad: None, range,
+                worst: crate::cost::infeasible_cost(24, crate::MatchingCost::Census),
                 paths, p1, p2: &p2, selection,
             };
             for (threads, overlap) in [(1, 0), (strips, h)] {

@@ -169,12 +169,31 @@ impl CensusWindow {
     }
 }
 
-/// Semi-Global Matching parameters. Costs are Hamming distances between census bit strings,
-/// so `p1`/`p2` are in "differing bits".
+/// The per-pixel matching cost SGM aggregates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MatchingCost {
+    /// Hamming distance between the census bit strings (0 ..= window pixels − 1).
+    Census,
+    /// AD-census: the census Hamming distance plus `min(weight · BT, cap)`, BT being the
+    /// Birchfield–Tomasi sampling-insensitive absolute difference in 8-bit grey levels
+    /// (Mei et al. 2011 combine the two terms the same way, additively in integer units).
+    /// `cap` is at most [`MAX_AD_CAP`].
+    AdCensus { weight: u8, cap: u8 },
+}
+
+/// The largest [`MatchingCost::AdCensus`] cap: costs stay below 192, so path costs (at most
+/// cost + P2) summed over eight paths fit `u16` for every accepted P2.
+pub const MAX_AD_CAP: u8 = 127;
+
+/// Semi-Global Matching parameters. Costs are Hamming distances between census bit strings
+/// (plus, for [`MatchingCost::AdCensus`], the capped intensity term), so `p1`/`p2` are in
+/// "differing bits".
 #[derive(Clone, Debug, PartialEq)]
 pub struct SgmParams {
     pub range: DisparityRange,
     pub census: CensusWindow,
+    /// The matching cost: census alone or AD-census.
+    pub matching_cost: MatchingCost,
     pub paths: PathCount,
     /// Penalty for a disparity change of one pixel along a path.
     pub p1: u16,
@@ -222,6 +241,7 @@ impl Default for SgmParams {
         SgmParams {
             range: DisparityRange::default(),
             census: CensusWindow { width: 9, height: 7 },
+            matching_cost: MatchingCost::AdCensus { weight: 2, cap: 40 },
             paths: PathCount::Eight,
             // Chosen by measurement on the seven Middlebury scenes (bad2, holes counted): a high
             // P1 with a moderate P2, no uniqueness test (it removed more right than wrong

@@ -252,7 +252,8 @@ pub(crate) fn census_transform(image: &GrayImage, window: CensusWindow, out: &mu
     });
 }
 
-/// The whole original pipeline: census, stored cost volume, aggregation, WTA, median.
+/// The whole original pipeline: census (plus the AD term of [`crate::MatchingCost::AdCensus`]),
+/// stored cost volume, aggregation, WTA, median.
 pub(crate) fn sgm_reference(
     left: &GrayImage,
     right: &GrayImage,
@@ -305,6 +306,47 @@ pub(crate) fn add_ad_costs(
     });
 }
 
+/// The production AD-census term, the readable way: adds `min(weight · BT, cap)` to every
+/// feasible cost and `cap` to every infeasible one, with BT the Birchfield–Tomasi dissimilarity
+/// of `round(I / 257)` against the rounded min/max of the half-pixel interpolations.
+pub(crate) fn add_ad_census_costs(
+    left: &GrayImage,
+    right: &GrayImage,
+    range: DisparityRange,
+    weight: u8,
+    cap: u8,
+    volume: &mut [u8],
+) {
+    let (width, _) = left.size();
+    let nd = range.count();
+    // (value, min, max) in 8-bit grey levels: twice each sample, rounded from /514.
+    let grey = |twice: u32| ((twice + 257) / 514) as i32;
+    let levels = |row: &[u16], x: usize| {
+        let c = u32::from(row[x]);
+        let a = c + u32::from(row[x.saturating_sub(1)]);
+        let b = c + u32::from(row[(x + 1).min(width - 1)]);
+        (grey(2 * c), grey((2 * c).min(a).min(b)), grey((2 * c).max(a).max(b)))
+    };
+    volume.par_chunks_mut(width * nd).enumerate().for_each(|(y, row)| {
+        let (l, r) = (left.row(y), right.row(y));
+        for (x, costs) in row.chunks_exact_mut(nd).enumerate() {
+            let (il, lmin, lmax) = levels(l, x);
+            for (k, c) in costs.iter_mut().enumerate() {
+                let xr = x as i64 - (range.min as i64 + k as i64);
+                let term = if xr < 0 || xr as usize >= width {
+                    i32::from(cap)
+                } else {
+                    let (ir, rmin, rmax) = levels(r, xr as usize);
+                    let d_lr = (il - rmax).max(rmin - il).max(0);
+                    let d_rl = (ir - lmax).max(lmin - ir).max(0);
+                    (i32::from(weight) * d_lr.min(d_rl)).min(i32::from(cap))
+                };
+                *c = (i32::from(*c) + term) as u8;
+            }
+        }
+    });
+}
+
 /// [`sgm_reference`] with an optional AD term `(weight, truncation)` ([`add_ad_costs`]).
 pub(crate) fn sgm_reference_ad(
     left: &GrayImage,
@@ -321,6 +363,9 @@ pub(crate) fn sgm_reference_ad(
     census_transform(right, params.census, &mut census_right);
     let mut cost = vec![0u8; width * height * nd];
     hamming_cost_volume(&census_left, &census_right, params.range, census_bits, &mut cost);
+    if let crate::MatchingCost::AdCensus { weight, cap } = params.matching_cost {
+        add_ad_census_costs(left, right, params.range, weight, cap, &mut cost);
+    }
     if let Some((weight, truncation)) = ad {
         add_ad_costs(left, right, params.range, weight, truncation, &mut cost);
     }
@@ -358,7 +403,7 @@ fn ad_census_measurement() {
         let (a, b) = v.split_once(',').unwrap();
         (a.parse::<f32>().unwrap(), b.parse::<f32>().unwrap())
     });
-    let mut params = crate::SgmParams::default();
+    let mut params = crate::SgmParams { matching_cost: crate::MatchingCost::Census, ..Default::default() };
     if let Some(v) = env("STEREO_P") {
         let (a, b) = v.split_once(',').unwrap();
         (params.p1, params.p2) = (a.parse().unwrap(), b.parse().unwrap());

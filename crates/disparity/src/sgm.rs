@@ -1,4 +1,4 @@
-//! Semi-Global Matching: census cost volume, path aggregation, winner-takes-all, checks.
+//! Semi-Global Matching: census (or AD-census) costs, path aggregation, winner-takes-all, checks.
 
 use crate::aggregate::{aggregate_and_select, stream_and_select, Inputs, P2Table, MAX_P2};
 use crate::buffer::ZeroedBuffer;
@@ -7,9 +7,10 @@ use crate::cost::infeasible_cost;
 use crate::memory;
 use crate::post::SgmOutput;
 use crate::wta::Selection;
-use crate::{check_pair, DisparityMap, Error, GrayImage, Image, SgmParams};
+use crate::{check_pair, DisparityMap, Error, GrayImage, Image, MatchingCost, SgmParams, MAX_AD_CAP};
 
-/// Semi-Global Matching of a rectified pair (Hirschmüller 2008) with census costs.
+/// Semi-Global Matching of a rectified pair (Hirschmüller 2008) with census or AD-census costs
+/// ([`SgmParams::matching_cost`]).
 ///
 /// Returns the left view's disparity map; NaN where no disparity in the range fits, or where the
 /// uniqueness or left-right check rejects the match.
@@ -48,6 +49,14 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         }
     }
 
+    if let MatchingCost::AdCensus { cap, .. } = params.matching_cost {
+        if cap > MAX_AD_CAP {
+            return Err(Error::InvalidParameter {
+                name: "AD-census cap",
+                message: format!("{cap} must be at most {MAX_AD_CAP}"),
+            });
+        }
+    }
     let nd = params.range.count();
     if nd >= usize::from(u16::MAX) {
         return Err(Error::InvalidParameter {
@@ -71,8 +80,12 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         image: left,
         census_left: &census_left,
         census_right: &census_right,
+        ad: match params.matching_cost {
+            MatchingCost::Census => None,
+            MatchingCost::AdCensus { weight, cap } => Some((right, u16::from(weight), u16::from(cap))),
+        },
         range: params.range,
-        worst: infeasible_cost(census_bits),
+        worst: infeasible_cost(census_bits, params.matching_cost),
         paths: params.paths,
         p1: params.p1,
         p2: &p2,
@@ -182,6 +195,7 @@ mod tests {
             four in proptest::prelude::any::<bool>(), p1 in 1u16..60, p2_extra in 1u16..300, edge in 0u16..60,
             uniq in 0u32..20, lr in proptest::prelude::any::<Option<u8>>(), sub in 0u8..3, median in proptest::prelude::any::<bool>(),
             window in 0usize..4, seed in proptest::prelude::any::<u64>(), strip_rows in 1usize..40,
+            ad in proptest::prelude::any::<Option<(u8, u8)>>(),
         ) {
             let nd = ((w as f64 * nd_frac.min(0.8)) as usize).max(1) as i32;
             let (cw, ch) = [(3, 3), (5, 5), (9, 7), (7, 9)][window];
@@ -197,6 +211,10 @@ mod tests {
                 lr_max_diff: lr.map(|v| f32::from(v % 4) * 0.75),
                 subpixel: [crate::Subpixel::None, crate::Subpixel::Parabola, crate::Subpixel::Equiangular][sub as usize],
                 median,
+                matching_cost: match ad {
+                    None => crate::MatchingCost::Census,
+                    Some((weight, cap)) => crate::MatchingCost::AdCensus { weight: weight % 9, cap: cap % (MAX_AD_CAP + 1) },
+                },
                 ..SgmParams::default()
             };
             let (left, right) = random_pair(w, h, kind, (seed % nd as u64) as i64 + i64::from(min), seed);

@@ -12,6 +12,8 @@
 
 use std::sync::OnceLock;
 
+use crate::cost::{bt, AdRows, BtRow, BT_PAD};
+
 /// Disparities are padded to whole blocks of this many `u16` lanes (one AVX2 register, half an
 /// AVX-512 one: the AVX-512 kernels finish an odd block with a 256-bit step).
 pub(crate) const LANES: usize = 16;
@@ -20,8 +22,9 @@ pub(crate) const LANES: usize = 16;
 pub(crate) const PAD: u16 = 0x7fff;
 
 /// Matching cost of the lanes past the last disparity. Path costs in those lanes stay within
-/// `JUNK_COST ..= JUNK_COST + P2`, above any real path cost (at most 64 + 2·P2) and, plus P1,
-/// above any real candidate, so they never change a real lane or a path minimum.
+/// `JUNK_COST ..= JUNK_COST + P2`, above any real path cost (at most 191 + P2: 64 census bits
+/// plus the AD cap) and, plus P1, above any real candidate, so they never change a real lane or
+/// a path minimum.
 pub(crate) const JUNK_COST: u16 = 0x4000;
 
 /// Disparity count rounded up to whole blocks of [`LANES`].
@@ -164,10 +167,12 @@ pub(crate) fn path_step_scalar<const N: usize>(
     mins
 }
 
-/// Hamming matching costs of one row, `lanes` entries per pixel (`out.len() == width * lanes`):
-/// `out[x][k] = popcount(left[x] ^ right[x - min_disparity - k])` for the disparities `k < nd`
-/// whose right pixel is inside the row, `worst` for the other disparities below `nd`, and
-/// [`JUNK_COST`] for `nd <= k < lanes`.
+/// Matching costs of one row, `lanes` entries per pixel (`out.len() == width * lanes`):
+/// `out[x][k] = popcount(left[x] ^ right[x - min_disparity - k])` (plus, with `ad`,
+/// `min(weight · BT(x, x - min_disparity - k), cap)`, see [`crate::cost::bt`]) for the
+/// disparities `k < nd` whose right pixel is inside the row, `worst` for the other disparities
+/// below `nd`, and [`JUNK_COST`] for `nd <= k < lanes`.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn cost_row(
     features: Features,
     left: &[u64],
@@ -175,24 +180,42 @@ pub(crate) fn cost_row(
     min_disparity: i32,
     nd: usize,
     worst: u16,
+    ad: Option<AdRows<'_>>,
     out: &mut [u16],
 ) {
     assert_eq!(left.len(), right.len());
     assert!(nd > 0 && out.len() == left.len() * padded_lanes(nd));
+    if let Some(ad) = ad {
+        for row in [ad.left, ad.right] {
+            assert!(row.value.len() == left.len() + 2 * BT_PAD);
+            assert!(row.lo.len() == row.value.len() && row.hi.len() == row.value.len());
+        }
+    }
     #[cfg(target_arch = "x86_64")]
     if features.vpopcnt {
         // SAFETY: `vpopcnt` is only set when the CPU has AVX-512F/BW/VL and VPOPCNTDQ; lengths were
         // checked above.
-        unsafe { x86::cost_row_avx512(left, right, min_disparity, nd, worst, out) };
+        unsafe { x86::cost_row_avx512(left, right, min_disparity, nd, worst, ad, out) };
         return;
     }
     #[cfg(target_arch = "x86_64")]
     if features.level >= Level::Avx2 {
-        // SAFETY: AVX2 (which implies POPCNT on every CPU that has it) was detected.
-        unsafe { x86::cost_row_avx2(left, right, min_disparity, nd, worst, out) };
+        // SAFETY: AVX2 (which implies POPCNT on every CPU that has it) was detected; lengths were
+        // checked above.
+        unsafe { x86::cost_row_avx2(left, right, min_disparity, nd, worst, ad, out) };
         return;
     }
-    cost_row_scalar(left, right, min_disparity, nd, worst, out)
+    cost_row_scalar(left, right, min_disparity, nd, worst, ad, out)
+}
+
+/// The disparity indices `lo..hi` of pixel `x` whose right pixel `x - min_disparity - k` is
+/// inside a row of `width` pixels (`lo <= hi <= nd`), and `first = x - min_disparity`.
+#[inline(always)]
+pub(crate) fn feasible(x: usize, width: usize, min_disparity: i32, nd: usize) -> (usize, usize, i64) {
+    let first = x as i64 - min_disparity as i64;
+    let hi = (first + 1).clamp(0, nd as i64) as usize;
+    let lo = (first - (width as i64 - 1)).clamp(0, hi as i64) as usize;
+    (lo, hi, first)
 }
 
 /// The readable reference of [`cost_row`].
@@ -203,20 +226,26 @@ pub(crate) fn cost_row_scalar(
     min_disparity: i32,
     nd: usize,
     worst: u16,
+    ad: Option<AdRows<'_>>,
     out: &mut [u16],
 ) {
     let width = left.len();
     let lanes = padded_lanes(nd);
     for (x, costs) in out.chunks_exact_mut(lanes).enumerate() {
         let l = left[x];
-        // Disparity index k has its right pixel at x - min - k: inside the row for k in ks.
-        let first = x as i64 - min_disparity as i64;
-        let hi = (first + 1).clamp(0, nd as i64) as usize;
-        let lo = (first - (width as i64 - 1)).clamp(0, hi as i64) as usize;
+        // Disparity index k has its right pixel at x - min - k: inside the row for k in lo..hi.
+        let (lo, hi, first) = feasible(x, width, min_disparity, nd);
         costs[..lo].fill(worst);
         for (k, c) in costs[lo..hi].iter_mut().enumerate() {
             let xr = (first - (lo + k) as i64) as usize;
             *c = (l ^ right[xr]).count_ones() as u16;
+            if let Some(ad) = ad {
+                let il = BT_PAD + x;
+                let ir = BT_PAD + width - 1 - xr;
+                let at = |r: &BtRow, i: usize| (r.value[i], r.lo[i], r.hi[i]);
+                let term = u16::from(bt(at(ad.left, il), at(ad.right, ir))) * ad.weight;
+                *c += term.min(ad.cap);
+            }
         }
         costs[hi..nd].fill(worst);
         costs[nd..].fill(JUNK_COST);
@@ -284,7 +313,7 @@ pub(crate) fn keep_smaller_scalar(costs: &[u16], first_index: u16, best: &mut [u
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::{cost_row_scalar, padded_lanes, PathIn, JUNK_COST};
+    use super::{cost_row_scalar, feasible, padded_lanes, AdRows, PathIn, BT_PAD, JUNK_COST};
 
     /// Minimum of the 32 unsigned 16-bit lanes.
     #[inline]
@@ -552,13 +581,14 @@ mod x86 {
     ///
     /// # Safety
     /// The CPU must have AVX-512F/BW/VL and VPOPCNTDQ; lengths as checked by [`super::cost_row`].
-    #[target_feature(enable = "avx512f,avx512bw,avx512vpopcntdq")]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vpopcntdq")]
     pub(super) unsafe fn cost_row_avx512(
         left: &[u64],
         right: &[u64],
         min_disparity: i32,
         nd: usize,
         worst: u16,
+        ad: Option<AdRows<'_>>,
         out: &mut [u16],
     ) {
         let width = left.len() as i64;
@@ -595,6 +625,10 @@ mod x86 {
                 // SAFETY: `k + n <= lanes`, inside this pixel's entries.
                 _mm512_mask_storeu_epi16(dst.add(k).cast(), ((1u64 << n) - 1) as __mmask32, junk);
                 k += n;
+            }
+            if let Some(ad) = &ad {
+                // SAFETY: all of `0..nd` is feasible here; `dst` holds this pixel's `lanes` entries.
+                add_ad_avx512(ad, dst, x, left.len(), first as i64, 0, nd);
             }
         }
         // The borders, where some disparities point outside the right row: masked loads, and the
@@ -638,6 +672,132 @@ mod x86 {
                 _mm_storeu_si128(dst.add(k).cast(), _mm512_cvtepi64_epi16(d));
                 k += 8;
             }
+            if let Some(ad) = &ad {
+                let (lo, hi, first) = feasible(x, left.len(), min_disparity, nd);
+                // SAFETY: `lo..hi` are this pixel's feasible disparities; `dst` holds its entries.
+                add_ad_avx512(ad, dst, x, left.len(), first, lo, hi);
+            }
+        }
+    }
+
+    /// Adds the AD term `min(weight · BT, cap)` to the costs `dst[lo..hi]` of pixel `x`
+    /// (`first = x - min_disparity`), 32 disparities per step.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F/BW/VL; `lo..hi` must be feasible disparities of `x` (as
+    /// [`feasible`] returns them) and `dst` must point at the pixel's `lanes >= hi` entries; the
+    /// rows of `ad` must be `width + 2 * BT_PAD` long.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
+    unsafe fn add_ad_avx512(
+        ad: &AdRows<'_>,
+        dst: *mut u16,
+        x: usize,
+        width: usize,
+        first: i64,
+        lo: usize,
+        hi: usize,
+    ) {
+        if lo >= hi {
+            return;
+        }
+        let il = BT_PAD + x;
+        let (lv, llo, lhi) = (
+            _mm256_set1_epi8(ad.left.value[il] as i8),
+            _mm256_set1_epi8(ad.left.lo[il] as i8),
+            _mm256_set1_epi8(ad.left.hi[il] as i8),
+        );
+        let weight = _mm512_set1_epi16(ad.weight as i16);
+        let cap = _mm512_set1_epi16(ad.cap as i16);
+        // Disparity k reads the reversed right rows at `base + k`.
+        let base = BT_PAD as i64 + width as i64 - 1 - first;
+        let mut k = lo & !15;
+        while k < hi {
+            let below = lo.saturating_sub(k);
+            let upto = (hi - k).min(32);
+            let mask = (((1u64 << upto) - 1) & !((1u64 << below) - 1)) as __mmask32;
+            // SAFETY: `lo - 15 <= k < hi` with `lo..hi` feasible puts `i` in
+            // `BT_PAD - 15 ..= BT_PAD + width - 1`, so the 32 bytes read are inside the padded rows.
+            let i = (base + k as i64) as usize;
+            let rv = _mm256_loadu_si256(ad.right.value.as_ptr().add(i).cast());
+            let rlo = _mm256_loadu_si256(ad.right.lo.as_ptr().add(i).cast());
+            let rhi = _mm256_loadu_si256(ad.right.hi.as_ptr().add(i).cast());
+            let d_lr = _mm256_max_epu8(_mm256_subs_epu8(lv, rhi), _mm256_subs_epu8(rlo, lv));
+            let d_rl = _mm256_max_epu8(_mm256_subs_epu8(rv, lhi), _mm256_subs_epu8(llo, rv));
+            let bt = _mm512_cvtepu8_epi16(_mm256_min_epu8(d_lr, d_rl));
+            let term = _mm512_min_epu16(_mm512_mullo_epi16(bt, weight), cap);
+            // SAFETY: the masked accesses touch only entries `lo..hi` of this pixel (`k < hi`
+            // keeps the pointer inside them; masked-off lanes are not accessed).
+            let p = dst.add(k);
+            let c = _mm512_maskz_loadu_epi16(mask, p.cast());
+            _mm512_mask_storeu_epi16(p.cast(), mask, _mm512_add_epi16(c, term));
+            k += 32;
+        }
+    }
+
+    /// Lane masks for [`add_ad_avx2`]: 16 entries read from `MASKS[16 - n..]` are set from lane
+    /// `n` on; from `MASKS[32 - n..]` below lane `n`.
+    static MASKS: [u16; 48] = {
+        let mut m = [0u16; 48];
+        let mut i = 16;
+        while i < 32 {
+            m[i] = u16::MAX;
+            i += 1;
+        }
+        m
+    };
+
+    /// AVX2 version of [`add_ad_avx512`], 16 disparities per step.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2; otherwise as [`add_ad_avx512`].
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn add_ad_avx2(
+        ad: &AdRows<'_>,
+        dst: *mut u16,
+        x: usize,
+        width: usize,
+        first: i64,
+        lo: usize,
+        hi: usize,
+    ) {
+        if lo >= hi {
+            return;
+        }
+        let il = BT_PAD + x;
+        let (lv, llo, lhi) = (
+            _mm_set1_epi8(ad.left.value[il] as i8),
+            _mm_set1_epi8(ad.left.lo[il] as i8),
+            _mm_set1_epi8(ad.left.hi[il] as i8),
+        );
+        let weight = _mm256_set1_epi16(ad.weight as i16);
+        let cap = _mm256_set1_epi16(ad.cap as i16);
+        let base = BT_PAD as i64 + width as i64 - 1 - first;
+        let mut k = lo & !15;
+        while k < hi {
+            let below = lo.saturating_sub(k);
+            let upto = (hi - k).min(16);
+            // SAFETY: `below <= 15` and `1 <= upto <= 16`: both 16-entry reads are inside `MASKS`.
+            let mask = _mm256_and_si256(
+                _mm256_loadu_si256(MASKS.as_ptr().add(16 - below).cast()),
+                _mm256_loadu_si256(MASKS.as_ptr().add(32 - upto).cast()),
+            );
+            // SAFETY: as in `add_ad_avx512`, the 16 bytes read at `i` are inside the padded rows.
+            let i = (base + k as i64) as usize;
+            let rv = _mm_loadu_si128(ad.right.value.as_ptr().add(i).cast());
+            let rlo = _mm_loadu_si128(ad.right.lo.as_ptr().add(i).cast());
+            let rhi = _mm_loadu_si128(ad.right.hi.as_ptr().add(i).cast());
+            let d_lr = _mm_max_epu8(_mm_subs_epu8(lv, rhi), _mm_subs_epu8(rlo, lv));
+            let d_rl = _mm_max_epu8(_mm_subs_epu8(rv, lhi), _mm_subs_epu8(llo, rv));
+            let bt = _mm256_cvtepu8_epi16(_mm_min_epu8(d_lr, d_rl));
+            let term = _mm256_min_epu16(_mm256_mullo_epi16(bt, weight), cap);
+            // SAFETY: `k` is a multiple of 16 below `hi <= lanes` (a multiple of 16), so entries
+            // `k..k + 16` are this pixel's; lanes outside `lo..hi` add 0.
+            let p = dst.add(k);
+            let c = _mm256_loadu_si256(p.cast());
+            _mm256_storeu_si256(p.cast(), _mm256_add_epi16(c, _mm256_and_si256(term, mask)));
+            k += 16;
         }
     }
 
@@ -652,9 +812,19 @@ mod x86 {
         min_disparity: i32,
         nd: usize,
         worst: u16,
+        ad: Option<AdRows<'_>>,
         out: &mut [u16],
     ) {
-        cost_row_scalar(left, right, min_disparity, nd, worst, out)
+        cost_row_scalar(left, right, min_disparity, nd, worst, None, out);
+        if let Some(ad) = &ad {
+            let (width, lanes) = (left.len(), padded_lanes(nd));
+            for x in 0..width {
+                let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+                // SAFETY: `lo..hi` are the feasible disparities of `x`, whose `lanes` entries
+                // start at `x * lanes` (`out.len() == width * lanes` was checked).
+                add_ad_avx2(ad, out.as_mut_ptr().add(x * lanes), x, width, first, lo, hi);
+            }
+        }
     }
 }
 
@@ -715,20 +885,41 @@ mod tests {
 
         #[test]
         fn cost_row_kernels_match_the_scalar_reference(width in 1usize..120, nd_frac in 0.0f64..1.0,
-                                                       min in -40i32..40, seed in any::<u64>(), worst in 9u16..=64) {
+                                                       min in -40i32..40, seed in any::<u64>(), worst in 9u16..=64,
+                                                       ad in any::<Option<(u8, u8)>>(), step in 1u64..20000) {
             let nd = ((width as f64 * nd_frac) as usize).max(1);
             let mut s = seed | 1;
             let mut next = || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s };
             let left: Vec<u64> = (0..width).map(|_| next()).collect();
             let right: Vec<u64> = (0..width).map(|_| next()).collect();
+            // Grey rows: random walks (small steps give BT values below the cap, large ones above).
+            let mut walk = |width: usize| {
+                let mut v = next() % 65536;
+                let mut row = Vec::with_capacity(width);
+                for _ in 0..width {
+                    let r = next();
+                    v = (v + r % step + 65536 - step / 2) % 65536;
+                    row.push(v as u16);
+                }
+                row
+            };
+            let grey_left = walk(width);
+            let grey_right = walk(width);
+            let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());
+            bt_left.fill(&grey_left, false);
+            bt_right.fill(&grey_right, true);
+            let ad = ad.map(|(weight, cap)| AdRows {
+                left: &bt_left, right: &bt_right, weight: u16::from(weight % 9), cap: u16::from(cap % 128),
+            });
+            let worst = worst + ad.map_or(0, |a| a.cap);
             let lanes = padded_lanes(nd);
             let mut reference = vec![0u16; width * lanes];
-            cost_row_scalar(&left, &right, min, nd, worst, &mut reference);
+            cost_row_scalar(&left, &right, min, nd, worst, ad, &mut reference);
             let top = features();
             for level in supported_levels() {
                 let f = Features { level, vpopcnt: top.vpopcnt && level == Level::Avx512 };
                 let mut out = vec![1u16; width * lanes];
-                cost_row(f, &left, &right, min, nd, worst, &mut out);
+                cost_row(f, &left, &right, min, nd, worst, ad, &mut out);
                 prop_assert_eq!(&out, &reference, "{:?}", f);
             }
         }

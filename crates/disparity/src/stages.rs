@@ -7,7 +7,7 @@ use crate::aggregate::{aggregate_and_select, stream_and_select, Inputs, P2Table}
 use crate::cost::infeasible_cost;
 use crate::simd::{self, padded_lanes};
 use crate::wta::Selection;
-use crate::{DisparityMap, GrayImage, Image, SgmParams};
+use crate::{DisparityMap, GrayImage, Image, MatchingCost, SgmParams};
 
 /// Census transform of one image with the window of `params`.
 pub fn census(image: &GrayImage, params: &SgmParams) -> Image<u64> {
@@ -16,11 +16,13 @@ pub fn census(image: &GrayImage, params: &SgmParams) -> Image<u64> {
     out
 }
 
-/// Hamming costs of every row (as the aggregation computes them, once per pass); returns a
-/// checksum so the work cannot be optimised away.
+/// Hamming costs of every row (as the aggregation computes them, once per pass; census cost
+/// only, whatever `params.matching_cost` says); returns a checksum so the work cannot be
+/// optimised away.
 pub fn hamming_costs(census_left: &Image<u64>, census_right: &Image<u64>, params: &SgmParams) -> u64 {
     let nd = params.range.count();
-    let worst = infeasible_cost((params.census.width * params.census.height - 1) as u32);
+    let worst =
+        infeasible_cost((params.census.width * params.census.height - 1) as u32, MatchingCost::Census);
     let mut row = vec![0u16; census_left.width() * padded_lanes(nd)];
     let mut check = 0u64;
     for y in 0..census_left.height() {
@@ -31,6 +33,7 @@ pub fn hamming_costs(census_left: &Image<u64>, census_right: &Image<u64>, params
             params.range.min,
             nd,
             worst,
+            None,
             &mut row,
         );
         check = check.wrapping_add(u64::from(row[y % row.len()]));
@@ -39,7 +42,7 @@ pub fn hamming_costs(census_left: &Image<u64>, census_right: &Image<u64>, params
 }
 
 /// Path aggregation (with the costs computed on the fly) and winner-takes-all with the checks,
-/// without the median: `sgm` minus census and post-filter.
+/// without the median: `sgm` minus census and post-filter (census cost only: no right image).
 pub fn aggregate_and_select_disparities(
     left: &GrayImage,
     census_left: &Image<u64>,
@@ -55,8 +58,9 @@ pub fn aggregate_and_select_disparities(
         image: left,
         census_left,
         census_right,
+        ad: None,
         range: params.range,
-        worst: infeasible_cost((params.census.width * params.census.height - 1) as u32),
+        worst: infeasible_cost((params.census.width * params.census.height - 1) as u32, MatchingCost::Census),
         paths: params.paths,
         p1: params.p1,
         p2: &p2,
