@@ -67,6 +67,7 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     matcher.set_range(range);
     let other = limits::other_bytes(&left_header, &right_header, config.points.is_some());
     limits::fit_memory(&mut matcher, &config.left, size, other, limits)?;
+    let planned_matcher_bytes = limits::matcher_bytes(&matcher, width, height);
 
     let left = stereo_io::load_gray_limited(&config.left, limits.max_pixels)
         .context("cannot read the left image")?;
@@ -203,6 +204,7 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
             write: report::ms(write),
             total: report::ms(total),
         },
+        planned_matcher_bytes,
         mde_per_s: if match_seconds > 0.0 {
             (pixels * range.count()) as f64 / match_seconds / 1e6
         } else {

@@ -38,6 +38,8 @@ pub struct Stats {
     pub timings_ms: Timings,
     /// Million disparity evaluations per second of the matching stage: W·H·ndisp / seconds / 1e6.
     pub mde_per_s: f64,
+    /// Peak working memory the matcher planned (aggregation buffers, per-thread rows), bytes.
+    pub planned_matcher_bytes: u64,
 }
 
 #[derive(Debug, Serialize)]

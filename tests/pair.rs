@@ -102,6 +102,11 @@ fn slanted_stats_json_has_documented_keys() {
     assert_eq!(keys, ["load", "match", "total", "triangulate", "write"]);
     assert!(timings.values().all(|v| v.as_f64().unwrap() >= 0.0));
     assert!(timings["total"].as_f64() >= timings["match"].as_f64());
+    // The matcher's plan holds at least the strip's aggregation buffer: W·D u16 per row.
+    let planned = stats["planned_matcher_bytes"].as_u64().expect("planned_matcher_bytes");
+    let row_bytes =
+        stats["width"].as_u64().unwrap() * stats["matcher"]["num_disparities"].as_u64().unwrap() * 2;
+    assert!(planned >= row_bytes, "planned {planned} < one row {row_bytes}");
 
     assert_eq!(stats["width"], exr.width);
     assert_eq!(stats["height"], exr.height);
