@@ -14,7 +14,7 @@
 pub mod summary;
 
 use std::io::{IsTerminal, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -158,20 +158,7 @@ pub fn run(config: &BatchConfig, out: &mut impl Write) -> Result<ExitCode> {
             if wall > Duration::ZERO { processed as f64 / wall.as_secs_f64() } else { 0.0 }
         )?;
     }
-    for path in &written {
-        writeln!(out, "summary: {}", path.display())?;
-    }
-    out.flush()?;
-    if summary.failed > 0 {
-        eprintln!(
-            "stereo-depth: {} of {} pairs failed (see {})",
-            summary.failed,
-            summary.pairs,
-            written[0].display()
-        );
-        return Ok(ExitCode::FAILURE);
-    }
-    Ok(ExitCode::SUCCESS)
+    report_written(&summary, &written, out)
 }
 
 pub fn merge(config: &BatchMergeConfig, out: &mut impl Write) -> Result<ExitCode> {
@@ -182,20 +169,7 @@ pub fn merge(config: &BatchMergeConfig, out: &mut impl Write) -> Result<ExitCode
         "{} pairs: {} ok, {} skipped, {} failed",
         summary.pairs, summary.ok, summary.skipped, summary.failed
     )?;
-    for path in &written {
-        writeln!(out, "summary: {}", path.display())?;
-    }
-    out.flush()?;
-    if summary.failed > 0 {
-        eprintln!(
-            "stereo-depth: {} of {} pairs failed (see {})",
-            summary.failed,
-            summary.pairs,
-            written[0].display()
-        );
-        return Ok(ExitCode::FAILURE);
-    }
-    Ok(ExitCode::SUCCESS)
+    report_written(&summary, &written, out)
 }
 
 /// `jobs.len()` rows, in the order of `jobs`.
@@ -517,4 +491,23 @@ impl Progress {
             bar.finish_and_clear();
         }
     }
+}
+
+/// Prints the summary files written and, when any pair failed, the failure count on stderr;
+/// exit status 1 then.
+fn report_written(summary: &Summary, written: &[PathBuf], out: &mut impl Write) -> Result<ExitCode> {
+    for path in written {
+        writeln!(out, "summary: {}", path.display())?;
+    }
+    out.flush()?;
+    if summary.failed > 0 {
+        eprintln!(
+            "stereo-depth: {} of {} pairs failed (see {})",
+            summary.failed,
+            summary.pairs,
+            written[0].display()
+        );
+        return Ok(ExitCode::FAILURE);
+    }
+    Ok(ExitCode::SUCCESS)
 }

@@ -64,7 +64,6 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
             message: format!("{nd} disparities; at most {} are supported", u16::MAX - 1),
         });
     }
-    let census_bits = (params.census.width * params.census.height - 1) as u32;
     let mut census_left = Image::new(width, height, 0u64);
     let mut census_right = Image::new(width, height, 0u64);
     rayon::join(
@@ -72,20 +71,42 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         || census_transform(right, params.census, &mut census_right),
     );
 
+    memory::plan(width, height, params).check(width, height, params)?;
+    let disparity = aggregate_census(left, Some(right), &census_left, &census_right, params);
+    drop((census_left, census_right));
+
+    Ok(crate::post::finish(disparity, left, params))
+}
+
+/// Path aggregation (costs computed on the fly from the census images) and winner-takes-all
+/// with the checks, before post-processing. `right` supplies the intensity term of AD-census;
+/// without it the cost is census alone (the stage benchmark).
+pub(crate) fn aggregate_census(
+    left: &GrayImage,
+    right: Option<&GrayImage>,
+    census_left: &Image<u64>,
+    census_right: &Image<u64>,
+    params: &SgmParams,
+) -> DisparityMap {
+    let (width, height) = left.size();
+    let nd = params.range.count();
     let plan = memory::plan(width, height, params);
-    plan.check(width, height, params)?;
+    let matching_cost = if right.is_some() { params.matching_cost } else { MatchingCost::Census };
+    let census_bits = (params.census.width * params.census.height - 1) as u32;
     let mut disparity = DisparityMap::new(width, height, f32::NAN);
     let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
     let inputs = Inputs {
         image: left,
-        census_left: &census_left,
-        census_right: &census_right,
-        ad: match params.matching_cost {
-            MatchingCost::Census => None,
-            MatchingCost::AdCensus { weight, cap } => Some((right, u16::from(weight), u16::from(cap))),
+        census_left,
+        census_right,
+        ad: match (matching_cost, right) {
+            (MatchingCost::AdCensus { weight, cap }, Some(right)) => {
+                Some((right, u16::from(weight), u16::from(cap)))
+            }
+            _ => None,
         },
         range: params.range,
-        worst: infeasible_cost(census_bits, params.matching_cost),
+        worst: infeasible_cost(census_bits, matching_cost),
         paths: params.paths,
         p1: params.p1,
         p2: &p2,
@@ -105,9 +126,7 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         let mut volume = ZeroedBuffer::<u16>::new(len);
         aggregate_and_select(&inputs, plan.strips, volume.as_mut_slice(), disparity.as_mut_slice());
     }
-    drop((census_left, census_right));
-
-    Ok(crate::post::finish(disparity, left, params))
+    disparity
 }
 
 /// The peak working memory [`sgm`] plans for a `width × height` pair, in bytes: both census

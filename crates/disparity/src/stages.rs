@@ -3,10 +3,8 @@
 //! [`sgm`](crate::sgm) runs them fused; these entry points run each over a whole image so its
 //! throughput can be measured alone.
 
-use crate::aggregate::{aggregate_and_select, stream_and_select, Inputs, P2Table};
 use crate::cost::infeasible_cost;
 use crate::simd::{self, padded_lanes};
-use crate::wta::Selection;
 use crate::{DisparityMap, GrayImage, Image, MatchingCost, SgmParams};
 
 /// Census transform of one image with the window of `params`.
@@ -49,35 +47,7 @@ pub fn aggregate_and_select_disparities(
     census_right: &Image<u64>,
     params: &SgmParams,
 ) -> DisparityMap {
-    let (width, height) = left.size();
-    let nd = params.range.count();
-    let plan = crate::memory::plan(width, height, params);
-    let mut disparity = DisparityMap::new(width, height, f32::NAN);
-    let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
-    let inputs = Inputs {
-        image: left,
-        census_left,
-        census_right,
-        ad: None,
-        range: params.range,
-        worst: infeasible_cost((params.census.width * params.census.height - 1) as u32, MatchingCost::Census),
-        paths: params.paths,
-        p1: params.p1,
-        p2: &p2,
-        selection: Selection {
-            range: params.range,
-            uniqueness_ratio: params.uniqueness_ratio,
-            lr_max_diff: params.lr_max_diff,
-            subpixel: params.subpixel,
-        },
-    };
-    if params.single_pass {
-        stream_and_select(&inputs, plan.stream_threads, plan.strips.overlap, disparity.as_mut_slice());
-    } else {
-        let mut volume = crate::buffer::ZeroedBuffer::<u16>::new(plan.strips.rows.min(height) * width * nd);
-        aggregate_and_select(&inputs, plan.strips, volume.as_mut_slice(), disparity.as_mut_slice());
-    }
-    disparity
+    crate::sgm::aggregate_census(left, None, census_left, census_right, params)
 }
 
 /// The 3×3 median post-filter.
