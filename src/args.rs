@@ -302,6 +302,20 @@ pub struct MatchArgs {
     #[arg(long, value_name = "N", help_heading = "Matching")]
     pub speckle_size: Option<usize>,
 
+    /// SGM: add a `confidence` channel to the depth EXR: per pixel in [0, 1], the census
+    /// agreement at the match times the share of neighbours within 1 px; 0 where the disparity
+    /// is invalid or was filled.
+    #[arg(long, help_heading = "Matching")]
+    pub confidence: bool,
+
+    /// SGM: invalidate pixels whose confidence (see --confidence) is below T, in [0, 1].
+    #[arg(long, value_name = "T", allow_negative_numbers = true, help_heading = "Matching")]
+    pub min_confidence: Option<f32>,
+
+    /// Add a `disparity` channel (pixels, NaN invalid) to the depth EXR beside `Z`.
+    #[arg(long, help_heading = "Matching")]
+    pub exr_disparity: bool,
+
     /// SGM: aggregate in one top-down pass (3 directions with --paths 4, 5 with --paths 8):
     /// faster and O(width x disparities) memory, somewhat less accurate.
     #[arg(long, help_heading = "Matching")]

@@ -243,6 +243,18 @@ pub struct MatchSettings {
     /// The range is filled in once the width is known.
     pub matcher: Matcher,
     pub limits: Limits,
+    pub extras: MatchExtras,
+}
+
+/// What the matcher adds to its disparity map: `--min-confidence`, and the extra EXR channels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MatchExtras {
+    /// Pixels below this confidence are invalidated.
+    pub min_confidence: Option<f32>,
+    /// The EXR carries a `confidence` channel.
+    pub confidence_channel: bool,
+    /// The EXR carries a `disparity` channel.
+    pub disparity_channel: bool,
 }
 
 /// Refusal limits, checked before an image is decoded.
@@ -281,11 +293,21 @@ impl MatchSettings {
                 ));
             }
         }
+        if let Some(t) = args.min_confidence {
+            if !(0.0..=1.0).contains(&t) {
+                return Err(usage!("--min-confidence {t} must be between 0 and 1"));
+            }
+        }
         Ok(MatchSettings {
             min_disparity: args.min_disparity,
             max_disparity: args.max_disparity,
             matcher,
             limits: Limits::from_args(args),
+            extras: MatchExtras {
+                min_confidence: args.min_confidence,
+                confidence_channel: args.confidence,
+                disparity_channel: args.exr_disparity,
+            },
         })
     }
 }
@@ -347,6 +369,7 @@ pub struct PairConfig {
     /// checked against the images before matching.
     pub expected_size: Option<(usize, usize)>,
     pub limits: Limits,
+    pub extras: MatchExtras,
 }
 
 impl PairConfig {
@@ -377,6 +400,8 @@ impl PairConfig {
                 (args.output.is_some(), "-o/--output (the depth EXR)", ""),
                 (args.depth_png.is_some(), "--depth-png", ""),
                 (args.points.is_some(), "--points", ""),
+                (args.matching.confidence, "--confidence (a channel of the depth EXR)", ""),
+                (args.matching.exr_disparity, "--exr-disparity (a channel of the depth EXR)", ""),
                 (
                     args.preview.is_some() && preview_of == PreviewOf::Depth,
                     "--preview (of depth, the default)",
@@ -418,6 +443,7 @@ impl PairConfig {
             quiet: args.quiet,
             expected_size: calib.and_then(|c| Some((c.width?, c.height?))),
             limits: settings.limits,
+            extras: settings.extras,
         };
         config.check_paths()?;
         Ok(config)
@@ -574,6 +600,8 @@ fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
                 ..defaults
             };
             let defaults = if args.fill { defaults.with_fill() } else { defaults };
+            let defaults =
+                SgmParams { confidence: args.confidence || args.min_confidence.is_some(), ..defaults };
             let params = SgmParams {
                 paths: match args.paths {
                     Some(PathsArg::Four) => PathCount::Four,
@@ -597,6 +625,8 @@ fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
             reject(args.fill, "--fill", "sgm")?;
             reject(args.speckle_size.is_some(), "--speckle-size", "sgm")?;
             reject(args.single_pass, "--single-pass", "sgm")?;
+            reject(args.confidence, "--confidence", "sgm")?;
+            reject(args.min_confidence.is_some(), "--min-confidence", "sgm")?;
             let defaults = BmParams::default();
             let block_size = args.block_size.unwrap_or(defaults.block_size);
             if block_size < 3 || block_size % 2 == 0 {

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use stereo_disparity::{block_match, sgm, DisparityMap, GrayImage};
+use stereo_disparity::{block_match, sgm, sgm_detailed, DisparityMap, GrayImage, Image};
 
 use crate::config::{Matcher, PairConfig, PreviewOf, UsageError};
 use crate::limits;
@@ -82,7 +82,8 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     }
 
     let t = Instant::now();
-    let disparity = run_matcher(&matcher, &left, &right, &config.left)?;
+    let (disparity, confidence) =
+        run_matcher(&matcher, &left, &right, &config.left, config.extras.min_confidence)?;
     let match_time = t.elapsed();
     drop((left, right));
 
@@ -95,7 +96,14 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     let mut depth_png_too_deep = None;
     let mut points_written = None;
     if let (Some(path), Some(depth)) = (&config.output, &depth) {
-        stereo_io::write_exr(path, &[("Z", depth)]).context("cannot write the depth map")?;
+        let mut channels = vec![("Z", depth)];
+        if let (true, Some(confidence)) = (config.extras.confidence_channel, &confidence) {
+            channels.push(("confidence", confidence));
+        }
+        if config.extras.disparity_channel {
+            channels.push(("disparity", &disparity));
+        }
+        stereo_io::write_exr(path, &channels).context("cannot write the depth map")?;
         written.0.push(path);
     }
     if let Some(path) = &config.disparity {
@@ -220,15 +228,29 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     Ok(stats)
 }
 
+/// Runs the matcher; with SGM's confidence asked for, also returns it, and invalidates the
+/// pixels under `min_confidence`.
 pub(crate) fn run_matcher(
     matcher: &Matcher,
     left: &GrayImage,
     right: &GrayImage,
     path: &Path,
-) -> Result<DisparityMap> {
+    min_confidence: Option<f32>,
+) -> Result<(DisparityMap, Option<Image<f32>>)> {
     let result = match matcher {
-        Matcher::Sgm(params) => sgm(left, right, params),
-        Matcher::Bm(params) => block_match(left, right, params),
+        Matcher::Sgm(params) if params.confidence => sgm_detailed(left, right, params).map(|out| {
+            let (mut disparity, confidence) = (out.disparity, out.confidence);
+            if let (Some(t), Some(c)) = (min_confidence, &confidence) {
+                for (d, &c) in disparity.as_mut_slice().iter_mut().zip(c.as_slice()) {
+                    if c < t {
+                        *d = f32::NAN;
+                    }
+                }
+            }
+            (disparity, confidence)
+        }),
+        Matcher::Sgm(params) => sgm(left, right, params).map(|d| (d, None)),
+        Matcher::Bm(params) => block_match(left, right, params).map(|d| (d, None)),
     };
     result.map_err(|err| {
         use stereo_disparity::Error;

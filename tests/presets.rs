@@ -112,3 +112,54 @@ fn presets_are_reported_and_only_for_sgm() {
     let err = run_in(dir.path(), &bm);
     assert!(err.assert_error(2).contains("--preset"));
 }
+
+#[test]
+fn confidence_and_disparity_channels_and_min_confidence() {
+    let dir = tempfile::tempdir().unwrap();
+    let (l, r) = (slanted("left.png"), slanted("right.png"));
+    let (exr, pfm) = (dir.path().join("d.exr"), dir.path().join("d.pfm"));
+    let mut args = vec![s(&l), s(&r), "--max-disparity", "64", "-o", s(&exr), "--disparity", s(&pfm)];
+    args.extend(common::RIG);
+    args.extend(["--confidence", "--exr-disparity"]);
+    run_in(dir.path(), &args).assert_success();
+
+    let mut names = stereo_io::exr_channel_names(&exr).unwrap();
+    names.sort();
+    assert_eq!(names, ["Z", "confidence", "disparity"]);
+    let z = stereo_io::read_exr_channel(&exr, "Z").unwrap();
+    let confidence = stereo_io::read_exr_channel(&exr, "confidence").unwrap();
+    let disparity = stereo_io::read_exr_channel(&exr, "disparity").unwrap();
+    let from_pfm = stereo_io::read_pfm(&pfm).unwrap();
+    let same = |a: f32, b: f32| a == b || (a.is_nan() && b.is_nan());
+    assert!(disparity.as_slice().iter().zip(from_pfm.as_slice()).all(|(&a, &b)| same(a, b)));
+    assert_eq!(z.size(), confidence.size());
+    for (&c, &d) in confidence.as_slice().iter().zip(from_pfm.as_slice()) {
+        assert!((0.0..=1.0).contains(&c), "confidence {c}");
+        if d.is_nan() {
+            assert_eq!(c, 0.0, "no confidence without a disparity");
+        }
+    }
+
+    // --min-confidence drops exactly the pixels under the threshold.
+    let kept = dir.path().join("kept.pfm");
+    run_in(
+        dir.path(),
+        &[s(&l), s(&r), "--max-disparity", "64", "--min-confidence", "0.5", "--disparity", s(&kept)],
+    )
+    .assert_success();
+    let kept = stereo_io::read_pfm(&kept).unwrap();
+    for ((&k, &d), &c) in kept.as_slice().iter().zip(from_pfm.as_slice()).zip(confidence.as_slice()) {
+        if c >= 0.5 {
+            assert!(same(k, d));
+        } else {
+            assert!(k.is_nan());
+        }
+    }
+
+    // The channels live in the depth EXR: without a rig, or with block matching, they are refused.
+    let no_rig = run_in(dir.path(), &[s(&l), s(&r), "--confidence", "--disparity", "x.pfm"]);
+    assert!(no_rig.assert_error(2).contains("--confidence"));
+    let mut bm = vec![s(&l), s(&r), "--matcher", "bm", "--min-confidence", "0.5", "--disparity", "x.pfm"];
+    bm.truncate(8);
+    assert!(run_in(dir.path(), &bm).assert_error(2).contains("--min-confidence"));
+}

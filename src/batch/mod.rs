@@ -291,6 +291,7 @@ fn process(config: &BatchConfig, job: &Job) -> Result<Stats> {
         quiet: true,
         expected_size: calib.and_then(|c| Some((c.width?, c.height?))),
         limits: settings.limits,
+        extras: settings.extras,
     };
     pair::process(&pair)
 }

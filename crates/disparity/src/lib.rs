@@ -24,6 +24,7 @@ mod aggregate;
 mod bm;
 mod buffer;
 mod census;
+mod confidence;
 mod cost;
 mod fill;
 mod filter;
@@ -234,6 +235,8 @@ pub struct SgmParams {
     pub wmf_radius: usize,
     /// Its colour sigma (8-bit grey levels).
     pub wmf_sigma_color: f32,
+    /// Compute the per-pixel confidence of [`SgmOutput::confidence`] ([`sgm_detailed`]).
+    pub confidence: bool,
 }
 
 impl Default for SgmParams {
@@ -262,6 +265,7 @@ impl Default for SgmParams {
             fill: false,
             wmf_radius: 0,
             wmf_sigma_color: 10.0,
+            confidence: false,
         }
     }
 }

@@ -16,6 +16,9 @@ pub struct SgmOutput {
     /// With [`SgmParams::fill`], every pixel whose status is not 0 but whose disparity is finite
     /// was filled.
     pub status: Image<u8>,
+    /// With [`SgmParams::confidence`]: per pixel, a confidence in `[0, 1]` (census agreement at
+    /// the match times the share of neighbours within 1 px); 0 for invalid and filled pixels.
+    pub confidence: Option<Image<f32>>,
 }
 
 impl SgmOutput {
@@ -54,5 +57,5 @@ pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params
     if params.wmf_radius > 0 {
         disparity = weighted_median(&disparity, left, params.wmf_radius, params.wmf_sigma_color, false);
     }
-    SgmOutput { disparity, status }
+    SgmOutput { disparity, status, confidence: None }
 }

@@ -3,6 +3,7 @@
 use crate::aggregate::{aggregate_and_select, stream_and_select, Inputs, P2Table, MAX_P2};
 use crate::buffer::ZeroedBuffer;
 use crate::census::census_transform;
+use crate::confidence::census_confidence;
 use crate::cost::infeasible_cost;
 use crate::memory;
 use crate::post::SgmOutput;
@@ -73,9 +74,28 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
 
     memory::plan(width, height, params).check(width, height, params)?;
     let disparity = aggregate_census(left, Some(right), &census_left, &census_right, params);
+    let confidence = params.confidence.then(|| {
+        let bits = (params.census.width * params.census.height - 1) as u32;
+        census_confidence(&disparity, &census_left, &census_right, bits)
+    });
     drop((census_left, census_right));
 
-    Ok(crate::post::finish(disparity, left, params))
+    let mut output = crate::post::finish(disparity, left, params);
+    if let Some(mut confidence) = confidence {
+        // Pixels the post-processing invalidated or filled were not matched: no confidence.
+        for ((c, &status), d) in confidence
+            .as_mut_slice()
+            .iter_mut()
+            .zip(output.status.as_slice())
+            .zip(output.disparity.as_slice())
+        {
+            if status != 0 || !d.is_finite() {
+                *c = 0.0;
+            }
+        }
+        output.confidence = Some(confidence);
+    }
+    Ok(output)
 }
 
 /// Path aggregation (costs computed on the fly from the census images) and winner-takes-all
