@@ -64,9 +64,21 @@ pub fn write_png16(path: &Path, image: &Image<u16>) -> Result<(), Error> {
     if w == 0 || h == 0 {
         return Err(format_err(path, format!("cannot write a {w}x{h} PNG (empty image)")));
     }
-    let buffer: ImageBuffer<Luma<u16>, Vec<u16>> =
-        ImageBuffer::from_raw(w as u32, h as u32, image.as_slice().to_vec())
-            .ok_or_else(|| format_err(path, "PNG buffer size mismatch"))?;
+    let buffer: Option<ImageBuffer<Luma<u16>, Vec<u16>>> =
+        ImageBuffer::from_raw(w as u32, h as u32, image.as_slice().to_vec());
+    write_png_buffer(path, buffer)
+}
+
+/// Encodes `buffer` (`None`: its size did not match) as PNG and writes it atomically.
+pub(crate) fn write_png_buffer<P>(
+    path: &Path,
+    buffer: Option<ImageBuffer<P, Vec<P::Subpixel>>>,
+) -> Result<(), Error>
+where
+    P: image::Pixel + image::PixelWithColorType,
+    [P::Subpixel]: image::EncodableLayout,
+{
+    let buffer = buffer.ok_or_else(|| format_err(path, "PNG buffer size mismatch"))?;
     let mut bytes = Cursor::new(Vec::new());
     buffer
         .write_to(&mut bytes, ImageFormat::Png)

@@ -3,13 +3,12 @@
 //! and 99th percentiles of the valid values, with the unit), drawn with a built-in 3×5 pixel
 //! font (no system fonts).
 
-use std::io::Cursor;
 use std::path::Path;
 
-use image::{ImageBuffer, ImageFormat, Rgb};
+use image::{ImageBuffer, Rgb};
 use stereo_disparity::Image;
 
-use crate::{format_err, write_atomic, Error};
+use crate::{format_err, Error};
 
 /// Google's Turbo colour map (Mikhailov 2019) at `t` in `[0, 1]` (clamped; NaN is 0): dark blue
 /// at 0, green-yellow in the middle, dark red at 1. This is the published degree-5 polynomial
@@ -214,13 +213,8 @@ pub fn write_png_rgb8(path: &Path, image: &Image<[u8; 3]>) -> Result<(), Error> 
         return Err(format_err(path, format!("cannot write a {w}x{h} PNG (empty image)")));
     }
     let raw: Vec<u8> = image.as_slice().iter().flatten().copied().collect();
-    let buffer: ImageBuffer<Rgb<u8>, Vec<u8>> = ImageBuffer::from_raw(w as u32, h as u32, raw)
-        .ok_or_else(|| format_err(path, "PNG buffer size mismatch"))?;
-    let mut bytes = Cursor::new(Vec::new());
-    buffer
-        .write_to(&mut bytes, ImageFormat::Png)
-        .map_err(|e| format_err(path, format!("cannot encode the PNG: {e}")))?;
-    write_atomic(path, bytes.get_ref())
+    let buffer: Option<ImageBuffer<Rgb<u8>, Vec<u8>>> = ImageBuffer::from_raw(w as u32, h as u32, raw);
+    crate::png16::write_png_buffer(path, buffer)
 }
 
 #[cfg(test)]
