@@ -244,6 +244,22 @@ pub fn percentile(sorted: &[f64], p: f64) -> Option<f64> {
     Some(sorted[lo] + frac * (sorted[hi] - sorted[lo]))
 }
 
+/// [`percentile`] of unsorted `values`, found by selection (`O(n)` instead of a full sort; the
+/// order of `values` changes). Equal to `percentile` of the sorted values.
+pub fn percentile_unsorted(values: &mut [f64], p: f64) -> Option<f64> {
+    let n = values.len();
+    if n == 0 {
+        return None;
+    }
+    let h = (n - 1) as f64 * p.clamp(0.0, 100.0) / 100.0;
+    let lo = h.floor() as usize;
+    let frac = h - lo as f64;
+    let (_, &mut at_lo, above) = values.select_nth_unstable_by(lo, f64::total_cmp);
+    // The next rank is the smallest value above the `lo`-th.
+    let at_hi = above.iter().copied().min_by(f64::total_cmp).unwrap_or(at_lo);
+    Some(at_lo + frac * (at_hi - at_lo))
+}
+
 /// Statistics of the valid samples of a map: a depth map ([`DepthStats`], metres, valid = finite
 /// and > 0) or a disparity map ([`DisparityStats`], pixels, valid = finite, negative included).
 /// Values are `None` when no pixel is valid. Percentiles (and the median) interpolate linearly
@@ -285,7 +301,6 @@ impl MapStats {
         let (width, height) = image.size();
         let mut values: Vec<f64> =
             image.as_slice().iter().copied().filter(|&v| valid(v)).map(f64::from).collect();
-        values.sort_unstable_by(f64::total_cmp);
         let total_pixels = width * height;
         let valid_pixels = values.len();
         let density_percent =
@@ -297,12 +312,14 @@ impl MapStats {
             valid_pixels,
             total_pixels,
             density_percent,
-            min: values.first().copied(),
-            max: values.last().copied(),
+            min: values.iter().copied().min_by(f64::total_cmp),
+            max: values.iter().copied().max_by(f64::total_cmp),
             mean,
-            median: percentile(&values, 50.0),
-            p5: percentile(&values, 5.0),
-            p95: percentile(&values, 95.0),
+            // Selection instead of sorting: a sort of every valid pixel cost more than the
+            // triangulation itself.
+            median: percentile_unsorted(&mut values, 50.0),
+            p5: percentile_unsorted(&mut values, 5.0),
+            p95: percentile_unsorted(&mut values, 95.0),
         }
     }
 }
@@ -460,6 +477,29 @@ mod tests {
         assert_eq!(percentile(&[1.0, 2.0], 50.0), Some(1.5));
         assert_eq!(percentile(&[7.0], 95.0), Some(7.0));
         assert_eq!(percentile(&[], 50.0), None);
+    }
+
+    #[test]
+    fn selected_percentiles_equal_sorted_ones() {
+        // A fixed pseudo-random sequence with repeats, several lengths and percentiles.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        for n in [1usize, 2, 3, 10, 101, 1000] {
+            let values: Vec<f64> = (0..n)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    (state % 50) as f64 * 0.25 - 3.0
+                })
+                .collect();
+            let mut sorted = values.clone();
+            sorted.sort_unstable_by(f64::total_cmp);
+            for p in [0.0, 5.0, 33.3, 50.0, 95.0, 100.0] {
+                let mut scratch = values.clone();
+                assert_eq!(percentile_unsorted(&mut scratch, p), percentile(&sorted, p), "n {n} p {p}");
+            }
+        }
+        assert_eq!(percentile_unsorted(&mut [], 50.0), None);
     }
 
     #[test]
