@@ -74,15 +74,17 @@ pub(crate) struct WtaScratch {
     /// Right view, indexed by `width - 1 - xr`: the best cost so far and its disparity index.
     right_cost: Vec<u16>,
     right_index: Vec<u16>,
+    /// Left view: each pixel's winning disparity index (fused AVX-512 kernel).
+    left_best: Vec<u16>,
 }
 
 impl WtaScratch {
     pub(crate) fn new(width: usize) -> Self {
-        WtaScratch { right_cost: vec![0; width], right_index: vec![0; width] }
+        WtaScratch { right_cost: vec![0; width], right_index: vec![0; width], left_best: vec![0; width] }
     }
 
     pub(crate) fn bytes(width: usize) -> usize {
-        4 * width
+        6 * width
     }
 }
 
@@ -105,6 +107,10 @@ pub(crate) fn select_row(
     {
         match simd::features().level {
             // SAFETY: the level was detected on this CPU.
+            Level::Avx512 if nd <= fused::MAX_DISPARITIES => {
+                return unsafe { fused::select_row_avx512(costs, width, nd, sel, scratch, out) }
+            }
+            // SAFETY: as above.
             Level::Avx512 => return unsafe { select_row_avx512(costs, width, nd, sel, scratch, out) },
             // SAFETY: as above.
             Level::Avx2 => return unsafe { select_row_avx2(costs, width, nd, sel, scratch, out) },
@@ -215,6 +221,202 @@ fn select_row_generic(
     }
 }
 
+/// Winner-takes-all in one sweep over the row with AVX-512BW, both views at once.
+///
+/// The right view's candidates for right pixel `q = width - 1 - xr` come from the left pixels
+/// `x = xr + min + k`: as `x` grows by one the `nd` right pixels it can match move down by one.
+/// So the right view's running minima live in registers as a window of `nd` lanes (lane `k` is
+/// right pixel `width - 1 - x + min + k`), shifted up by one lane per pixel; the lane that leaves
+/// is final and is stored. This replaces a read-modify-write of a memory window that overlaps
+/// the previous pixel's by all but one lane, which stalls on store forwarding at every pixel.
+/// The left-right check runs in a second, per-pixel loop once every right pixel is final.
+#[cfg(target_arch = "x86_64")]
+mod fused {
+    use std::arch::x86_64::*;
+
+    use super::{feasible_left, subpixel_offset, tagged_nan, PixelStatus, Selection, WtaScratch, NO_MATCH};
+
+    /// Registers of 32 lanes per window array: up to 8, i.e. 256 disparities.
+    const MAX_VECTORS: usize = 8;
+    pub(super) const MAX_DISPARITIES: usize = 32 * MAX_VECTORS;
+
+    /// Lanes `lo..hi` of the 32-lane block starting at lane `base`.
+    #[inline(always)]
+    fn lane_mask(lo: usize, hi: usize, base: usize) -> __mmask32 {
+        let lo = lo.clamp(base, base + 32) - base;
+        let hi = hi.clamp(base, base + 32) - base;
+        let upto = |n: usize| if n >= 32 { u32::MAX } else { (1u32 << n) - 1 };
+        upto(hi) & !upto(lo)
+    }
+
+    /// [`super::select_row`] for `nd <= MAX_DISPARITIES`.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F/BW/VL; `costs` holds at least `width * nd` entries and `out`
+    /// at least `width`.
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,popcnt")]
+    pub(super) unsafe fn select_row_avx512(
+        costs: &[u16],
+        width: usize,
+        nd: usize,
+        sel: Selection,
+        scratch: &mut WtaScratch,
+        out: &mut [f32],
+    ) {
+        match nd.div_ceil(32) {
+            0 | 1 => sweep::<1>(costs, width, nd, sel, scratch, out),
+            2 => sweep::<2>(costs, width, nd, sel, scratch, out),
+            3 => sweep::<3>(costs, width, nd, sel, scratch, out),
+            4 => sweep::<4>(costs, width, nd, sel, scratch, out),
+            5 => sweep::<5>(costs, width, nd, sel, scratch, out),
+            6 => sweep::<6>(costs, width, nd, sel, scratch, out),
+            7 => sweep::<7>(costs, width, nd, sel, scratch, out),
+            _ => sweep::<8>(costs, width, nd, sel, scratch, out),
+        }
+    }
+
+    /// # Safety
+    /// As [`select_row_avx512`], with `nd <= 32 * NV`.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,popcnt")]
+    unsafe fn sweep<const NV: usize>(
+        costs: &[u16],
+        width: usize,
+        nd: usize,
+        sel: Selection,
+        scratch: &mut WtaScratch,
+        out: &mut [f32],
+    ) {
+        assert!(nd <= 32 * NV && costs.len() >= width * nd && out.len() >= width);
+        let lr = sel.lr_max_diff.is_some();
+        let min = sel.range.min as i64;
+        let ones = _mm512_set1_epi16(-1);
+        let iota = _mm512_set_epi16(
+            31, 30, 29, 28, 27, 26, 25, 24, 23, 22, 21, 20, 19, 18, 17, 16, 15, 14, 13, 12, 11, 10, 9, 8, 7,
+            6, 5, 4, 3, 2, 1, 0,
+        );
+        // Lane l takes lane 31 of the lower block (index 31) for l = 0, else its own lane l - 1.
+        let shift_up = _mm512_add_epi16(iota, _mm512_set1_epi16(31));
+        let index: [__m512i; NV] =
+            std::array::from_fn(|j| _mm512_add_epi16(iota, _mm512_set1_epi16(32 * j as i16)));
+        let mut window_cost = [ones; NV];
+        let mut window_index = [ones; NV];
+        let right_index = &mut scratch.right_index[..width];
+        let left_best = &mut scratch.left_best[..width];
+        right_index.fill(NO_MATCH);
+        let (top_vector, top_lane) = ((nd.max(1) - 1) / 32, (nd.max(1) - 1) % 32);
+        let full: [__mmask32; NV] = std::array::from_fn(|j| lane_mask(0, nd, 32 * j));
+        for x in 0..width {
+            let ks = feasible_left(x, width, sel.range);
+            let feasible: [__mmask32; NV] = if ks.start == 0 && ks.end == nd {
+                full
+            } else {
+                std::array::from_fn(|j| lane_mask(ks.start, ks.end, 32 * j))
+            };
+            // SAFETY: the loads are masked to this pixel's `nd` entries of `costs`.
+            let c: [__m512i; NV] = std::array::from_fn(|j| {
+                _mm512_mask_loadu_epi16(ones, full[j], costs.as_ptr().add(x * nd + 32 * j).cast())
+            });
+            if lr {
+                for j in 0..NV {
+                    let better = _mm512_mask_cmplt_epu16_mask(feasible[j], c[j], window_cost[j]);
+                    window_cost[j] = _mm512_mask_mov_epi16(window_cost[j], better, c[j]);
+                    window_index[j] = _mm512_mask_mov_epi16(window_index[j], better, index[j]);
+                }
+                // Lane nd - 1 (right pixel q) gets no more candidates: store it, then shift.
+                let q = width as i64 - 1 - x as i64 + min + nd as i64 - 1;
+                if (0..width as i64).contains(&q) {
+                    let lane0 = right_index.as_mut_ptr().wrapping_offset(q as isize - top_lane as isize);
+                    // SAFETY: the store is masked to the one lane that lands on `right_index[q]`.
+                    _mm512_mask_storeu_epi16(lane0.cast(), 1 << top_lane, window_index[top_vector]);
+                }
+                for j in (0..NV).rev() {
+                    let (below_cost, below_index) =
+                        if j == 0 { (ones, ones) } else { (window_cost[j - 1], window_index[j - 1]) };
+                    window_cost[j] = _mm512_permutex2var_epi16(below_cost, shift_up, window_cost[j]);
+                    window_index[j] = _mm512_permutex2var_epi16(below_index, shift_up, window_index[j]);
+                }
+            }
+            out[x] = tagged_nan(PixelStatus::NoMatch);
+            if ks.is_empty() {
+                continue;
+            }
+            let mut m = ones;
+            for j in 0..NV {
+                m = _mm512_mask_min_epu16(m, feasible[j], m, c[j]);
+            }
+            let best_cost = hmin_epu16(m);
+            let target = _mm512_set1_epi16(best_cost as i16);
+            let mut best = 0;
+            for j in 0..NV {
+                let hit = _mm512_mask_cmpeq_epu16_mask(feasible[j], c[j], target);
+                if hit != 0 {
+                    best = 32 * j + hit.trailing_zeros() as usize;
+                    break;
+                }
+            }
+            let c = &costs[x * nd..(x + 1) * nd];
+            if sel.uniqueness_ratio > 0 {
+                let second = ks.clone().filter(|k| k.abs_diff(best) > 1).map(|k| c[k]).min();
+                if let Some(second) = second {
+                    if u64::from(c[best]) * u64::from(100 + sel.uniqueness_ratio) > u64::from(second) * 100 {
+                        out[x] = tagged_nan(PixelStatus::Ambiguous);
+                        continue;
+                    }
+                }
+            }
+            let offset = if best > ks.start && best + 1 < ks.end {
+                subpixel_offset(
+                    sel.subpixel,
+                    f32::from(c[best - 1]),
+                    f32::from(c[best]),
+                    f32::from(c[best + 1]),
+                )
+            } else {
+                0.0
+            };
+            left_best[x] = best as u16;
+            out[x] = (min + best as i64) as f32 + offset;
+        }
+        if !lr {
+            return;
+        }
+        // After the last pixel's shift every lane is final: lane k is right pixel min - 1 + k.
+        let mut lanes = [0u16; 32 * MAX_VECTORS];
+        for (j, v) in window_index.iter().enumerate() {
+            // SAFETY: 32 lanes into `lanes[32 j..32 j + 32]`, `j < NV <= MAX_VECTORS`.
+            _mm512_storeu_si512(lanes.as_mut_ptr().add(32 * j).cast(), *v);
+        }
+        for (k, &kr) in lanes[..nd].iter().enumerate() {
+            let q = min - 1 + k as i64;
+            if (0..width as i64).contains(&q) {
+                right_index[q as usize] = kr;
+            }
+        }
+        let max_diff = sel.lr_max_diff.unwrap_or(f32::INFINITY);
+        for (x, o) in out[..width].iter_mut().enumerate() {
+            if o.is_nan() {
+                continue;
+            }
+            let best = usize::from(left_best[x]);
+            let q = width as i64 - 1 - x as i64 + min + best as i64;
+            let kr = right_index[q as usize];
+            if kr == NO_MATCH || (kr as f32 - best as f32).abs() > max_diff {
+                *o = super::lr_failure(kr != NO_MATCH && usize::from(kr) > best);
+            }
+        }
+    }
+
+    /// Minimum of the 32 unsigned 16-bit lanes.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
+    fn hmin_epu16(v: __m512i) -> u16 {
+        let m = _mm256_min_epu16(_mm512_castsi512_si256(v), _mm512_extracti64x4_epi64::<1>(v));
+        let m = _mm_min_epu16(_mm256_castsi256_si128(m), _mm256_extracti128_si256::<1>(m));
+        _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u16
+    }
+}
+
 /// The original row selection, kept as the readable reference of [`select_row`].
 #[cfg(test)]
 pub(crate) fn select_row_reference(
@@ -282,6 +484,56 @@ pub(crate) fn select_row_reference(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
+        /// Every selection kernel this CPU runs gives the reference's bits, ties included
+        /// (costs from a small range), for any range, border and check.
+        #[test]
+        fn selection_kernels_match_the_reference(
+            width in 1usize..90, nd in 1usize..300, min in -20i32..40, spread in 1u16..40,
+            seed in proptest::prelude::any::<u64>(), uniqueness in 0u32..3, lr in proptest::prelude::any::<Option<u8>>(),
+            sub in 0u8..3,
+        ) {
+            let mut state = seed | 1;
+            let costs: Vec<u16> = (0..width * nd)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    (state % u64::from(spread)) as u16 * 37
+                })
+                .collect();
+            let sel = Selection {
+                range: DisparityRange { min, max: min + nd as i32 },
+                uniqueness_ratio: uniqueness * 7,
+                lr_max_diff: lr.map(|d| f32::from(d % 4)),
+                subpixel: [Subpixel::None, Subpixel::Parabola, Subpixel::Equiangular][usize::from(sub)],
+            };
+            let mut expected = vec![0f32; width];
+            crate::wta::select_row_reference(&costs, width, nd, sel, &mut vec![0; width], &mut expected);
+            let mut scratch = WtaScratch::new(width);
+            let mut runs: Vec<(&str, Vec<f32>)> = Vec::new();
+            let mut generic = vec![0f32; width];
+            select_row_generic(&costs, width, nd, sel, &mut scratch, &mut generic, Level::Scalar);
+            runs.push(("generic", generic));
+            let mut dispatched = vec![0f32; width];
+            select_row(&costs, width, nd, sel, &mut scratch, &mut dispatched);
+            runs.push(("select_row", dispatched));
+            #[cfg(target_arch = "x86_64")]
+            if simd::supported_levels().contains(&Level::Avx512) && nd <= fused::MAX_DISPARITIES {
+                let mut f = vec![0f32; width];
+                // SAFETY: AVX-512 is supported (checked above); the lengths fit.
+                unsafe { fused::select_row_avx512(&costs, width, nd, sel, &mut scratch, &mut f) };
+                runs.push(("fused", f));
+            }
+            for (name, got) in runs {
+                for (x, (a, b)) in got.iter().zip(&expected).enumerate() {
+                    proptest::prop_assert!(a.to_bits() == b.to_bits(), "{} pixel {}: {} vs {}", name, x, a, b);
+                }
+            }
+        }
+    }
 
     #[test]
     fn feasible_ranges_respect_the_image_borders() {
