@@ -576,8 +576,25 @@ mod x86 {
         }
     }
 
-    /// AVX-512 VPOPCNTQ [`super::cost_row`]: 8 Hamming distances per instruction for the pixels
-    /// whose disparities all fall inside the right row; the scalar reference for the others.
+    /// Lanes `lo..hi` (clamped to `0..n`) of an `n`-lane mask.
+    #[inline(always)]
+    fn lanes_between(lo: i64, hi: i64, n: i64) -> u64 {
+        let upto = |v: i64| {
+            let v = v.clamp(0, n) as u32;
+            if v >= 64 {
+                u64::MAX
+            } else {
+                (1u64 << v) - 1
+            }
+        };
+        upto(hi) & !upto(lo)
+    }
+
+    /// AVX-512 VPOPCNTQ [`super::cost_row`]: 32 disparities per step, entirely in registers.
+    /// Four loads of 8 right census strings (ascending addresses, so descending disparities), four
+    /// popcounts packed into the four 16-bit words of each 64-bit lane by shifts, and one word
+    /// permutation back to disparity order (no narrowing stores, no reversal per load); then the
+    /// AD term, the worst cost where the right pixel is outside the row, and a single store.
     ///
     /// # Safety
     /// The CPU must have AVX-512F/BW/VL and VPOPCNTDQ; lengths as checked by [`super::cost_row`].
@@ -591,147 +608,89 @@ mod x86 {
         ad: Option<AdRows<'_>>,
         out: &mut [u16],
     ) {
-        let width = left.len() as i64;
+        let width = left.len();
         let lanes = padded_lanes(nd);
-        let min = min_disparity as i64;
-        // Pixels whose right matches x - min - k, k in 0..nd, are all inside 0..width.
-        let x_lo = (min + nd as i64 - 1).clamp(0, width) as usize;
-        let x_hi = (width + min).clamp(x_lo as i64, width) as usize;
         let junk = _mm512_set1_epi16(JUNK_COST as i16);
-        let reverse = _mm512_set_epi64(0, 1, 2, 3, 4, 5, 6, 7);
-        #[allow(clippy::needless_range_loop)] // x also addresses `right` and `out`
-        for x in x_lo..x_hi {
-            let l = _mm512_set1_epi64(left[x] as i64);
-            let first = (x as i64 - min) as usize;
+        let worst = _mm512_set1_epi16(worst as i16);
+        // Word 4i + j of the packed vector is load j's lane i: disparity k + 8j + 7 - i.
+        let unpack = {
+            let mut idx = [0i16; 32];
+            for (m, v) in idx.iter_mut().enumerate() {
+                *v = (4 * (7 - m % 8) + m / 8) as i16;
+            }
+            _mm512_loadu_si512(idx.as_ptr().cast())
+        };
+        let (weight, cap) = match &ad {
+            Some(ad) => (_mm512_set1_epi16(ad.weight as i16), _mm512_set1_epi16(ad.cap as i16)),
+            None => (_mm512_setzero_si512(), _mm512_setzero_si512()),
+        };
+        let bt_len = (width + 2 * BT_PAD) as i64;
+        for (x, &census) in left.iter().enumerate() {
+            let l = _mm512_set1_epi64(census as i64);
+            // Disparity index k has its right pixel at first - k: inside the row for k in lo..hi.
+            let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+            let interior = lo == 0 && hi == nd;
             let dst = out.as_mut_ptr().add(x * lanes);
+            let bt_left = ad.as_ref().map(|ad| {
+                let il = BT_PAD + x;
+                (
+                    _mm256_set1_epi8(ad.left.value[il] as i8),
+                    _mm256_set1_epi8(ad.left.lo[il] as i8),
+                    _mm256_set1_epi8(ad.left.hi[il] as i8),
+                )
+            });
             let mut k = 0;
-            while k + 8 <= nd {
-                // SAFETY: the load covers right[first - k - 7 ..= first - k], inside the row since
-                // `first - (nd - 1) >= 0` and `first <= width - 1` for `x_lo <= x < x_hi`; the store
-                // covers entries `k..k + 8` of this pixel's `lanes`.
-                let r = _mm512_loadu_si512(right.as_ptr().add(first - k - 7).cast());
-                let r = _mm512_permutexvar_epi64(reverse, r);
-                let d = _mm512_popcnt_epi64(_mm512_xor_si512(l, r));
-                _mm_storeu_si128(dst.add(k).cast(), _mm512_cvtepi64_epi16(d));
-                k += 8;
-            }
-            for k in k..nd {
-                // SAFETY: as above, one lane at a time.
-                *dst.add(k) = (left[x] ^ *right.get_unchecked(first - k)).count_ones() as u16;
-            }
-            let mut k = nd;
             while k < lanes {
+                let count = |j: usize| {
+                    // Disparities k + 8j ..= k + 8j + 7 read right[first - k - 8j - 7 ..=
+                    // first - k - 8j]; lanes whose address is outside the row are not loaded.
+                    let lowest = first - (k + 8 * j) as i64 - 7;
+                    let inside = if lowest >= 0 && lowest + 8 <= width as i64 {
+                        !0
+                    } else {
+                        lanes_between(-lowest, width as i64 - lowest, 8) as __mmask8
+                    };
+                    // SAFETY: the masked load touches only lanes whose address is inside `right`;
+                    // the pointer is formed with wrapping arithmetic.
+                    let r = _mm512_maskz_loadu_epi64(
+                        inside,
+                        right.as_ptr().wrapping_offset(lowest as isize).cast(),
+                    );
+                    _mm512_popcnt_epi64(_mm512_xor_si512(l, r))
+                };
+                let packed = _mm512_or_si512(
+                    _mm512_or_si512(count(0), _mm512_slli_epi64::<16>(count(1))),
+                    _mm512_or_si512(_mm512_slli_epi64::<32>(count(2)), _mm512_slli_epi64::<48>(count(3))),
+                );
+                let mut cost = _mm512_permutexvar_epi16(unpack, packed);
+                if let (Some(ad), Some((lv, llo, lhi))) = (&ad, bt_left) {
+                    // Disparity k reads the reversed right BT rows at `i + k`; the pads of
+                    // `BT_PAD` entries cover the lanes of interior pixels past `nd`, masks the rest.
+                    let i = BT_PAD as i64 + width as i64 - 1 - first + k as i64;
+                    let inside = if interior { !0 } else { lanes_between(-i, bt_len - i, 32) as __mmask32 };
+                    let load = |row: &[u8]| {
+                        // SAFETY: masked to the lanes inside `row` (`bt_len` entries); for interior
+                        // pixels `i + 32 <= BT_PAD + width + 30`, inside the padded row.
+                        _mm256_maskz_loadu_epi8(inside, row.as_ptr().wrapping_offset(i as isize).cast())
+                    };
+                    let (rv, rlo, rhi) = (load(&ad.right.value), load(&ad.right.lo), load(&ad.right.hi));
+                    let d_lr = _mm256_max_epu8(_mm256_subs_epu8(lv, rhi), _mm256_subs_epu8(rlo, lv));
+                    let d_rl = _mm256_max_epu8(_mm256_subs_epu8(rv, lhi), _mm256_subs_epu8(llo, rv));
+                    let bt = _mm512_cvtepu8_epi16(_mm256_min_epu8(d_lr, d_rl));
+                    cost = _mm512_add_epi16(cost, _mm512_min_epu16(_mm512_mullo_epi16(bt, weight), cap));
+                }
+                let cost = if interior && k + 32 <= nd {
+                    cost
+                } else {
+                    let feasible = lanes_between(lo as i64 - k as i64, hi as i64 - k as i64, 32) as __mmask32;
+                    let real = lanes_between(0, nd as i64 - k as i64, 32) as __mmask32;
+                    _mm512_mask_mov_epi16(junk, real, _mm512_mask_mov_epi16(worst, feasible, cost))
+                };
                 let n = (lanes - k).min(32);
                 // SAFETY: `k + n <= lanes`, inside this pixel's entries.
-                _mm512_mask_storeu_epi16(dst.add(k).cast(), ((1u64 << n) - 1) as __mmask32, junk);
-                k += n;
+                _mm512_mask_storeu_epi16(dst.add(k).cast(), ((1u64 << n) - 1) as __mmask32, cost);
+                k += 32;
             }
-            if let Some(ad) = &ad {
-                // SAFETY: all of `0..nd` is feasible here; `dst` holds this pixel's `lanes` entries.
-                add_ad_avx512(ad, dst, x, left.len(), first as i64, 0, nd);
-            }
-        }
-        // The borders, where some disparities point outside the right row: masked loads, and the
-        // worst cost blended into the lanes whose right pixel is missing.
-        let iota = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
-        let worst64 = _mm512_set1_epi64(i64::from(worst));
-        let junk64 = _mm512_set1_epi64(i64::from(JUNK_COST));
-        let w64 = _mm512_set1_epi64(width);
-        for x in (0..x_lo).chain(x_hi..left.len()) {
-            let l = _mm512_set1_epi64(left[x] as i64);
-            let first = x as i64 - min;
-            let dst = out.as_mut_ptr().add(x * lanes);
-            let mut k = 0;
-            while k < lanes {
-                // Lane j is disparity index k + j, right pixel first - k - j; loaded lane i holds
-                // right[first - k - 7 + i] (reversed below).
-                let xr = _mm512_sub_epi64(_mm512_set1_epi64(first - k as i64), iota);
-                let inside =
-                    _mm512_cmpge_epi64_mask(xr, _mm512_setzero_si512()) & _mm512_cmplt_epi64_mask(xr, w64);
-                let addr = _mm512_add_epi64(_mm512_set1_epi64(first - k as i64 - 7), iota);
-                let load = _mm512_cmpge_epi64_mask(addr, _mm512_setzero_si512())
-                    & _mm512_cmplt_epi64_mask(addr, w64);
-                // SAFETY: the masked load touches only the lanes whose address is inside `right`;
-                // the pointer is formed with wrapping arithmetic and never dereferenced elsewhere.
-                let r = _mm512_maskz_loadu_epi64(
-                    load,
-                    right.as_ptr().wrapping_offset(first as isize - k as isize - 7).cast(),
-                );
-                let r = _mm512_permutexvar_epi64(reverse, r);
-                let d = _mm512_popcnt_epi64(_mm512_xor_si512(l, r));
-                let d = _mm512_mask_mov_epi64(worst64, inside, d);
-                let real: __mmask8 = if k >= nd {
-                    0
-                } else if nd - k >= 8 {
-                    !0
-                } else {
-                    (1u8 << (nd - k)) - 1
-                };
-                let d = _mm512_mask_mov_epi64(junk64, real, d);
-                // SAFETY: `k + 8 <= lanes`, inside this pixel's entries.
-                _mm_storeu_si128(dst.add(k).cast(), _mm512_cvtepi64_epi16(d));
-                k += 8;
-            }
-            if let Some(ad) = &ad {
-                let (lo, hi, first) = feasible(x, left.len(), min_disparity, nd);
-                // SAFETY: `lo..hi` are this pixel's feasible disparities; `dst` holds its entries.
-                add_ad_avx512(ad, dst, x, left.len(), first, lo, hi);
-            }
-        }
-    }
-
-    /// Adds the AD term `min(weight · BT, cap)` to the costs `dst[lo..hi]` of pixel `x`
-    /// (`first = x - min_disparity`), 32 disparities per step.
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512F/BW/VL; `lo..hi` must be feasible disparities of `x` (as
-    /// [`feasible`] returns them) and `dst` must point at the pixel's `lanes >= hi` entries; the
-    /// rows of `ad` must be `width + 2 * BT_PAD` long.
-    #[inline]
-    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
-    unsafe fn add_ad_avx512(
-        ad: &AdRows<'_>,
-        dst: *mut u16,
-        x: usize,
-        width: usize,
-        first: i64,
-        lo: usize,
-        hi: usize,
-    ) {
-        if lo >= hi {
-            return;
-        }
-        let il = BT_PAD + x;
-        let (lv, llo, lhi) = (
-            _mm256_set1_epi8(ad.left.value[il] as i8),
-            _mm256_set1_epi8(ad.left.lo[il] as i8),
-            _mm256_set1_epi8(ad.left.hi[il] as i8),
-        );
-        let weight = _mm512_set1_epi16(ad.weight as i16);
-        let cap = _mm512_set1_epi16(ad.cap as i16);
-        // Disparity k reads the reversed right rows at `base + k`.
-        let base = BT_PAD as i64 + width as i64 - 1 - first;
-        let mut k = lo & !15;
-        while k < hi {
-            let below = lo.saturating_sub(k);
-            let upto = (hi - k).min(32);
-            let mask = (((1u64 << upto) - 1) & !((1u64 << below) - 1)) as __mmask32;
-            // SAFETY: `lo - 15 <= k < hi` with `lo..hi` feasible puts `i` in
-            // `BT_PAD - 15 ..= BT_PAD + width - 1`, so the 32 bytes read are inside the padded rows.
-            let i = (base + k as i64) as usize;
-            let rv = _mm256_loadu_si256(ad.right.value.as_ptr().add(i).cast());
-            let rlo = _mm256_loadu_si256(ad.right.lo.as_ptr().add(i).cast());
-            let rhi = _mm256_loadu_si256(ad.right.hi.as_ptr().add(i).cast());
-            let d_lr = _mm256_max_epu8(_mm256_subs_epu8(lv, rhi), _mm256_subs_epu8(rlo, lv));
-            let d_rl = _mm256_max_epu8(_mm256_subs_epu8(rv, lhi), _mm256_subs_epu8(llo, rv));
-            let bt = _mm512_cvtepu8_epi16(_mm256_min_epu8(d_lr, d_rl));
-            let term = _mm512_min_epu16(_mm512_mullo_epi16(bt, weight), cap);
-            // SAFETY: the masked accesses touch only entries `lo..hi` of this pixel (`k < hi`
-            // keeps the pointer inside them; masked-off lanes are not accessed).
-            let p = dst.add(k);
-            let c = _mm512_maskz_loadu_epi16(mask, p.cast());
-            _mm512_mask_storeu_epi16(p.cast(), mask, _mm512_add_epi16(c, term));
-            k += 32;
         }
     }
 
