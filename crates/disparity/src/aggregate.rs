@@ -27,6 +27,7 @@
 use std::sync::Mutex;
 
 use crate::cost::{AdRows, BtRow};
+use crate::path_u8::{self, padded_lanes_u8, PAD_U8};
 use crate::simd::{self, padded_lanes, Level, PathIn, PAD};
 use crate::wta::{select_row, Selection, WtaScratch};
 use crate::{DisparityRange, GrayImage, Image, PathCount};
@@ -52,6 +53,11 @@ impl P2Table {
         P2Table { table: t, constant: (edge_scale == 0).then_some(p2) }
     }
 
+    /// The largest P2 of the table.
+    pub(crate) fn max(&self) -> u16 {
+        self.table.iter().copied().max().unwrap_or(0)
+    }
+
     /// P2 between neighbouring pixels of intensities `a` and `b`.
     #[inline]
     pub(crate) fn p2(&self, a: u16, b: u16) -> u16 {
@@ -64,6 +70,90 @@ impl P2Table {
 
 /// Largest P2 accepted, so every sum of eight path costs fits in `u16`.
 pub(crate) const MAX_P2: u16 = 4000;
+
+/// The type a pass keeps its path costs in: `u16` for any costs and penalties, `u8` (twice the
+/// disparities per instruction, half the memory traffic) when every path cost fits in it
+/// ([`path_u8::fits`]); the sums are `u16` either way and the results identical.
+trait PathCost: Copy + Default + Send + Sync + 'static {
+    /// Pad at both ends of a path-cost vector.
+    const PAD: Self;
+    /// Path-cost vector length (before the two pads) for `nd` disparities.
+    fn lanes(nd: usize) -> usize;
+    /// A value known to fit (a penalty or a path minimum).
+    fn narrow(v: u16) -> Self;
+    /// This pass's cost row: the `u16` row itself, or its 8-bit copy made in `narrow`.
+    fn costs<'a>(level: Level, wide: &'a [u16], nd: usize, narrow: &'a mut [Self]) -> &'a [Self];
+    /// [`simd::path_step`] in this type.
+    fn step<const N: usize>(
+        level: Level,
+        cost: &[Self],
+        p1: Self,
+        ins: [PathIn<'_, Self>; N],
+        outs: [&mut [Self]; N],
+        sum: &mut [u16],
+        accumulate: bool,
+    ) -> [Self; N];
+}
+
+impl PathCost for u16 {
+    const PAD: u16 = PAD;
+    fn lanes(nd: usize) -> usize {
+        padded_lanes(nd)
+    }
+    fn narrow(v: u16) -> u16 {
+        v
+    }
+    fn costs<'a>(_: Level, wide: &'a [u16], _: usize, _: &'a mut [u16]) -> &'a [u16] {
+        wide
+    }
+    #[inline(always)]
+    fn step<const N: usize>(
+        level: Level,
+        cost: &[u16],
+        p1: u16,
+        ins: [PathIn<'_>; N],
+        outs: [&mut [u16]; N],
+        sum: &mut [u16],
+        accumulate: bool,
+    ) -> [u16; N] {
+        simd::path_step(level, cost, p1, ins, outs, sum, accumulate)
+    }
+}
+
+impl PathCost for u8 {
+    const PAD: u8 = PAD_U8;
+    fn lanes(nd: usize) -> usize {
+        padded_lanes_u8(nd)
+    }
+    fn narrow(v: u16) -> u8 {
+        debug_assert!(v <= path_u8::MAX_PATH_COST);
+        v as u8
+    }
+    #[inline(always)]
+    fn costs<'a>(level: Level, wide: &'a [u16], nd: usize, narrow: &'a mut [u8]) -> &'a [u8] {
+        let width = narrow.len() / padded_lanes_u8(nd);
+        path_u8::narrow_row(level, wide, wide.len() / width.max(1), nd, narrow, padded_lanes_u8(nd));
+        narrow
+    }
+    #[inline(always)]
+    fn step<const N: usize>(
+        level: Level,
+        cost: &[u8],
+        p1: u8,
+        ins: [PathIn<'_, u8>; N],
+        outs: [&mut [u8]; N],
+        sum: &mut [u16],
+        accumulate: bool,
+    ) -> [u8; N] {
+        path_u8::path_step_u8(level, cost, p1, ins, outs, sum, accumulate)
+    }
+}
+
+/// Whether the passes run on 8-bit path costs: only where the 8-bit kernel is vectorised
+/// (AVX-512) and every path cost fits.
+fn use_u8(inputs: &Inputs<'_>) -> bool {
+    simd::features().level == Level::Avx512 && path_u8::fits(inputs.worst, inputs.p1, inputs.p2.max())
+}
 
 /// What the aggregation reads.
 pub(crate) struct Inputs<'a> {
@@ -130,8 +220,25 @@ pub(crate) fn aggregate_and_select(
     let strip_rows = plan.rows.clamp(1, height.max(1));
     debug_assert!(volume.len() >= strip_rows.min(height) * width * nd);
     debug_assert_eq!(disparity.len(), width * height);
-    let mut forward = PassState::new(inputs, Pass::Forward);
-    let mut backward = PassState::new(inputs, Pass::Backward);
+    if use_u8(inputs) {
+        aggregate_strips::<u8>(inputs, strip_rows, plan.overlap, volume, disparity);
+    } else {
+        aggregate_strips::<u16>(inputs, strip_rows, plan.overlap, volume, disparity);
+    }
+}
+
+/// [`aggregate_and_select`] with path costs of type `T`.
+fn aggregate_strips<T: PathCost>(
+    inputs: &Inputs<'_>,
+    strip_rows: usize,
+    overlap: usize,
+    volume: &mut [u16],
+    disparity: &mut [f32],
+) {
+    let (width, height) = inputs.image.size();
+    let nd = inputs.range.count();
+    let mut forward = PassState::<T>::new(inputs, Pass::Forward);
+    let mut backward = PassState::<T>::new(inputs, Pass::Backward);
     for (strip, disparity) in disparity.chunks_mut(strip_rows * width).enumerate() {
         let y0 = strip * strip_rows;
         let y1 = y0 + disparity.len() / width.max(1);
@@ -140,7 +247,7 @@ pub(crate) fn aggregate_and_select(
             .zip(disparity.chunks_mut(width))
             .map(|(sum, disparity)| Mutex::new(RowSlot { sum, disparity, visited: false }))
             .collect();
-        let warm_end = y1.saturating_add(plan.overlap).min(height);
+        let warm_end = y1.saturating_add(overlap).min(height);
         let rows = &rows;
         let (forward, backward) = (&mut forward, &mut backward);
         rayon::join(
@@ -165,9 +272,15 @@ pub(crate) fn stream_and_select(inputs: &Inputs<'_>, strips: usize, overlap: usi
             scope.spawn(move |_| {
                 let y0 = strip * strip_rows;
                 let y1 = y0 + disparity.len() / width.max(1);
-                let mut state = PassState::new(inputs, Pass::Forward);
                 let mut sum = vec![0u16; width * inputs.range.count()];
-                stream_rows(&mut state, inputs, y0.saturating_sub(overlap), y0, y1, &mut sum, disparity);
+                let warm = y0.saturating_sub(overlap);
+                if use_u8(inputs) {
+                    let mut state = PassState::<u8>::new(inputs, Pass::Forward);
+                    stream_rows(&mut state, inputs, warm, y0, y1, &mut sum, disparity);
+                } else {
+                    let mut state = PassState::<u16>::new(inputs, Pass::Forward);
+                    stream_rows(&mut state, inputs, warm, y0, y1, &mut sum, disparity);
+                }
             });
         }
     });
@@ -203,50 +316,59 @@ fn prefetch_ahead(sum: &[u16], x: usize, nd: usize, forward: bool) {
 }
 
 /// Path costs of one row for one direction (padded per pixel) and each pixel's minimum.
-struct RowPaths {
-    costs: Vec<u16>,
-    mins: Vec<u16>,
+struct RowPaths<T> {
+    costs: Vec<T>,
+    mins: Vec<T>,
 }
 
-impl RowPaths {
-    fn pair(width: usize, stride: usize) -> [RowPaths; 2] {
-        std::array::from_fn(|_| RowPaths { costs: vec![PAD; width * stride], mins: vec![0; width] })
+impl<T: PathCost> RowPaths<T> {
+    fn pair(width: usize, stride: usize) -> [RowPaths<T>; 2] {
+        std::array::from_fn(|_| RowPaths {
+            costs: vec![T::PAD; width * stride],
+            mins: vec![T::default(); width],
+        })
     }
 }
 
 /// The `O(W·D)` state of one pass: the current cost row, the path costs of the previous and the
 /// current row, and the WTA scratch. Allocated once per call.
-struct PassState {
+struct PassState<T> {
     pass: Pass,
     /// The previous row of this pass, or `None` when the next row starts the paths.
     prev_y: Option<usize>,
     cost: Vec<u16>,
-    vertical: [RowPaths; 2],
-    diag_a: [RowPaths; 2],
-    diag_b: [RowPaths; 2],
-    horizontal: [Vec<u16>; 2],
-    zero: Vec<u16>,
+    /// The cost row in `T` (empty for `u16`, which uses `cost`).
+    cost_narrow: Vec<T>,
+    vertical: [RowPaths<T>; 2],
+    diag_a: [RowPaths<T>; 2],
+    diag_b: [RowPaths<T>; 2],
+    horizontal: [Vec<T>; 2],
+    zero: Vec<T>,
     /// The current row's Birchfield–Tomasi inputs (AD-census only).
     bt_left: BtRow,
     bt_right: BtRow,
     scratch: WtaScratch,
 }
 
-impl PassState {
+impl<T: PathCost> PassState<T> {
     fn new(inputs: &Inputs<'_>, pass: Pass) -> Self {
         let width = inputs.image.width();
-        let lanes = padded_lanes(inputs.range.count());
+        let nd = inputs.range.count();
+        let lanes = T::lanes(nd);
         let stride = lanes + 2;
         let diagonal_width = if inputs.paths == PathCount::Eight { width } else { 0 };
+        let narrow =
+            if lanes == padded_lanes(nd) && std::mem::size_of::<T>() == 2 { 0 } else { width * lanes };
         PassState {
             pass,
             prev_y: None,
-            cost: vec![0; width * lanes],
+            cost: vec![0; width * padded_lanes(nd)],
+            cost_narrow: vec![T::default(); narrow],
             vertical: RowPaths::pair(width, stride),
             diag_a: RowPaths::pair(diagonal_width, stride),
             diag_b: RowPaths::pair(diagonal_width, stride),
-            horizontal: [vec![PAD; stride], vec![PAD; stride]],
-            zero: vec![0; stride],
+            horizontal: [vec![T::PAD; stride], vec![T::PAD; stride]],
+            zero: vec![T::default(); stride],
             bt_left: BtRow::default(),
             bt_right: BtRow::default(),
             scratch: WtaScratch::new(width),
@@ -266,7 +388,7 @@ macro_rules! dispatch {
         /// The CPU must have AVX-512F/BW/VL.
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2")]
-        unsafe fn $avx512($($arg: $ty),*) {
+        unsafe fn $avx512<T: PathCost>($($arg: $ty),*) {
             $generic($($arg),*, Level::Avx512)
         }
 
@@ -274,21 +396,27 @@ macro_rules! dispatch {
         /// The CPU must have AVX2.
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx2")]
-        unsafe fn $avx2($($arg: $ty),*) {
+        unsafe fn $avx2<T: PathCost>($($arg: $ty),*) {
             $generic($($arg),*, Level::Avx2)
         }
     };
 }
 
 dispatch!(run_rows_generic, run_rows_avx512, run_rows_avx2,
-    (state: &mut PassState, inputs: &Inputs<'_>, y0: usize, y1: usize, rows: &[Mutex<RowSlot<'_>>]));
+    (state: &mut PassState<T>, inputs: &Inputs<'_>, y0: usize, y1: usize, rows: &[Mutex<RowSlot<'_>>]));
 dispatch!(stream_rows_generic, stream_rows_avx512, stream_rows_avx2,
-    (state: &mut PassState, inputs: &Inputs<'_>, warm: usize, y0: usize, y1: usize, sum: &mut [u16], disparity: &mut [f32]));
+    (state: &mut PassState<T>, inputs: &Inputs<'_>, warm: usize, y0: usize, y1: usize, sum: &mut [u16], disparity: &mut [f32]));
 
 /// Runs `state`'s pass over rows `y0..y1` (in the pass's direction). With `rows` (one slot per
 /// row from `y0`) it stores or adds the sums and selects the finished rows; with no slots it only
 /// advances the paths (warm-up).
-fn run_rows(state: &mut PassState, inputs: &Inputs<'_>, y0: usize, y1: usize, rows: &[Mutex<RowSlot<'_>>]) {
+fn run_rows<T: PathCost>(
+    state: &mut PassState<T>,
+    inputs: &Inputs<'_>,
+    y0: usize,
+    y1: usize,
+    rows: &[Mutex<RowSlot<'_>>],
+) {
     match simd::features().level {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the level was detected on this CPU.
@@ -301,8 +429,8 @@ fn run_rows(state: &mut PassState, inputs: &Inputs<'_>, y0: usize, y1: usize, ro
 }
 
 #[inline(always)]
-fn run_rows_generic(
-    state: &mut PassState,
+fn run_rows_generic<T: PathCost>(
+    state: &mut PassState<T>,
     inputs: &Inputs<'_>,
     y0: usize,
     y1: usize,
@@ -329,8 +457,8 @@ fn run_rows_generic(
     }
 }
 
-fn stream_rows(
-    state: &mut PassState,
+fn stream_rows<T: PathCost>(
+    state: &mut PassState<T>,
     inputs: &Inputs<'_>,
     warm: usize,
     y0: usize,
@@ -354,8 +482,8 @@ fn stream_rows(
 /// row's `disparity` (`disparity` starts at row `y0`).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn stream_rows_generic(
-    state: &mut PassState,
+fn stream_rows_generic<T: PathCost>(
+    state: &mut PassState<T>,
     inputs: &Inputs<'_>,
     warm: usize,
     y0: usize,
@@ -365,30 +493,35 @@ fn stream_rows_generic(
     level: Level,
 ) {
     let (width, nd) = (inputs.image.width(), inputs.range.count());
-    let lanes = padded_lanes(nd);
+    let lanes = T::lanes(nd);
     for y in warm..y1 {
         if y < y0 {
             step_row(state, inputs, y, level, &mut [], false);
             continue;
         }
         step_row(state, inputs, y, level, sum, false);
-        // ←: right to left over the same cost row, added to the row's sums.
+        // ←: right to left over the same cost row (already in `T`), added to the row's sums.
         let row = inputs.image.row(y);
-        let start = PathIn { prev: &state.zero, prev_min: 0, p2: 0 };
-        let mut h_min = 0u16;
+        let start = PathIn { prev: &state.zero[..], prev_min: T::default(), p2: T::default() };
+        let mut h_min = T::default();
+        let cost: &[T] = if state.cost_narrow.is_empty() {
+            T::costs(level, &state.cost, nd, &mut [])
+        } else {
+            &state.cost_narrow
+        };
         for x in (0..width).rev() {
             let [h_prev, h_cur] = &mut state.horizontal;
             let h_in = if x + 1 == width {
                 start
             } else {
-                PathIn { prev: h_prev, prev_min: h_min, p2: inputs.p2.p2(row[x], row[x + 1]) }
+                PathIn { prev: &h_prev[..], prev_min: h_min, p2: T::narrow(inputs.p2.p2(row[x], row[x + 1])) }
             };
-            let [m] = simd::path_step(
+            let [m] = T::step(
                 level,
-                &state.cost[x * lanes..(x + 1) * lanes],
-                inputs.p1,
+                &cost[x * lanes..(x + 1) * lanes],
+                T::narrow(inputs.p1),
                 [h_in],
-                [h_cur],
+                [&mut h_cur[..]],
                 &mut sum[x * nd..(x + 1) * nd],
                 true,
             );
@@ -404,8 +537,8 @@ fn stream_rows_generic(
 /// vertical and, for 8 paths, both diagonals) in the pass's direction, storing (or, with
 /// `accumulate`, adding) the path costs into `sum` (`[x][d]`; empty for warm-up).
 #[inline(always)]
-fn step_row(
-    state: &mut PassState,
+fn step_row<T: PathCost>(
+    state: &mut PassState<T>,
     inputs: &Inputs<'_>,
     y: usize,
     level: Level,
@@ -414,10 +547,11 @@ fn step_row(
 ) {
     let width = inputs.image.width();
     let nd = inputs.range.count();
-    let lanes = padded_lanes(nd);
+    let lanes = T::lanes(nd);
     let stride = lanes + 2;
     let diagonals = inputs.paths == PathCount::Eight;
-    let (p1, p2) = (inputs.p1, inputs.p2);
+    let (p1, p2) = (T::narrow(inputs.p1), inputs.p2);
+    let p2_between = |a: u16, b: u16| T::narrow(p2.p2(a, b));
     let forward = state.pass == Pass::Forward;
     let first_row = state.prev_y.is_none();
     let prev_y = state.prev_y.unwrap_or(y);
@@ -440,15 +574,16 @@ fn step_row(
         &mut state.cost,
     );
     let store = !sum.is_empty();
-    let PassState { cost, vertical, diag_a, diag_b, horizontal, zero, .. } = state;
+    let PassState { cost, cost_narrow, vertical, diag_a, diag_b, horizontal, zero, .. } = state;
+    let cost = T::costs(level, cost, nd, cost_narrow);
     // A path entering the image: stepping from all-zero costs yields the matching cost.
-    let start = PathIn { prev: zero, prev_min: 0, p2: 0 };
+    let start = PathIn { prev: &zero[..], prev_min: T::default(), p2: T::default() };
     let [v_prev, v_cur] = vertical;
     let [a_prev, a_cur] = diag_a;
     let [b_prev, b_cur] = diag_b;
-    let mut h_min = 0u16;
+    let mut h_min = T::default();
     // The input of a path continuing from pixel `from` of the previous row.
-    fn at<'a>(paths: &'a RowPaths, from: usize, stride: usize, p2: u16) -> PathIn<'a> {
+    fn at<T: PathCost>(paths: &RowPaths<T>, from: usize, stride: usize, p2: T) -> PathIn<'_, T> {
         PathIn { prev: &paths.costs[from * stride..(from + 1) * stride], prev_min: paths.mins[from], p2 }
     }
     // The diagonal "a" comes from x - step in the previous row of the pass, "b" from x + step.
@@ -465,29 +600,29 @@ fn step_row(
             start
         } else {
             let from = if forward { x - 1 } else { x + 1 };
-            PathIn { prev: h_prev, prev_min: h_min, p2: p2.p2(here, row[from]) }
+            PathIn { prev: &h_prev[..], prev_min: h_min, p2: p2_between(here, row[from]) }
         };
-        let v_in = if first_row { start } else { at(v_prev, x, stride, p2.p2(here, prev_row[x])) };
+        let v_in = if first_row { start } else { at(v_prev, x, stride, p2_between(here, prev_row[x])) };
         let v_out = &mut v_cur.costs[x * stride..(x + 1) * stride];
         if diagonals {
             let (left, right) = (x.checked_sub(1), (x + 1 < width).then_some(x + 1));
             let (a_from, b_from) = if forward { (left, right) } else { (right, left) };
             let a_in = match a_from {
-                Some(f) if !first_row => at(a_prev, f, stride, p2.p2(here, prev_row[f])),
+                Some(f) if !first_row => at(a_prev, f, stride, p2_between(here, prev_row[f])),
                 _ => start,
             };
             let b_in = match b_from {
-                Some(f) if !first_row => at(b_prev, f, stride, p2.p2(here, prev_row[f])),
+                Some(f) if !first_row => at(b_prev, f, stride, p2_between(here, prev_row[f])),
                 _ => start,
             };
             let a_out = &mut a_cur.costs[x * stride..(x + 1) * stride];
             let b_out = &mut b_cur.costs[x * stride..(x + 1) * stride];
-            let [mh, mv, ma, mb] = simd::path_step(
+            let [mh, mv, ma, mb] = T::step(
                 level,
                 c,
                 p1,
                 [h_in, v_in, a_in, b_in],
-                [h_cur, v_out, a_out, b_out],
+                [&mut h_cur[..], v_out, a_out, b_out],
                 sum,
                 accumulate,
             );
@@ -496,7 +631,7 @@ fn step_row(
             a_cur.mins[x] = ma;
             b_cur.mins[x] = mb;
         } else {
-            let [mh, mv] = simd::path_step(level, c, p1, [h_in, v_in], [h_cur, v_out], sum, accumulate);
+            let [mh, mv] = T::step(level, c, p1, [h_in, v_in], [&mut h_cur[..], v_out], sum, accumulate);
             h_min = mh;
             v_cur.mins[x] = mv;
         }

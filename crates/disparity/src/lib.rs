@@ -30,6 +30,7 @@ mod fill;
 mod filter;
 mod image;
 mod memory;
+mod path_u8;
 mod post;
 #[cfg(test)]
 mod reference;

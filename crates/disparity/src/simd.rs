@@ -97,11 +97,12 @@ fn detect() -> Features {
 /// One path's input for a step: the previous pixel's padded path-cost vector and its minimum,
 /// and the large-jump penalty for this step. A path that starts here uses an all-zero `prev`
 /// with minimum 0, which makes the step return the matching cost itself.
+/// (`T` is the path-cost type: `u16` here, `u8` for [`crate::path_u8`].)
 #[derive(Clone, Copy)]
-pub(crate) struct PathIn<'a> {
-    pub prev: &'a [u16],
-    pub prev_min: u16,
-    pub p2: u16,
+pub(crate) struct PathIn<'a, T = u16> {
+    pub prev: &'a [T],
+    pub prev_min: T,
+    pub p2: T,
 }
 
 /// One SGM step for `N` paths at one pixel (Hirschmüller 2008, eq. 13):
@@ -630,6 +631,8 @@ mod x86 {
             // Disparity index k has its right pixel at first - k: inside the row for k in lo..hi.
             let (lo, hi, first) = feasible(x, width, min_disparity, nd);
             let interior = lo == 0 && hi == nd;
+            // Every census load of the pixel (padding lanes included) inside the row.
+            let loads_inside = first + 1 >= lanes as i64 && first < width as i64;
             let dst = out.as_mut_ptr().add(x * lanes);
             let bt_left = ad.as_ref().map(|ad| {
                 let il = BT_PAD + x;
@@ -641,11 +644,16 @@ mod x86 {
             });
             let mut k = 0;
             while k < lanes {
+                // The last block of an odd multiple of 16 lanes needs only its first two loads.
+                let half = k + 32 > lanes;
                 let count = |j: usize| {
+                    if half && j >= 2 {
+                        return _mm512_setzero_si512();
+                    }
                     // Disparities k + 8j ..= k + 8j + 7 read right[first - k - 8j - 7 ..=
                     // first - k - 8j]; lanes whose address is outside the row are not loaded.
                     let lowest = first - (k + 8 * j) as i64 - 7;
-                    let inside = if lowest >= 0 && lowest + 8 <= width as i64 {
+                    let inside = if loads_inside {
                         !0
                     } else {
                         lanes_between(-lowest, width as i64 - lowest, 8) as __mmask8
@@ -681,14 +689,22 @@ mod x86 {
                 }
                 let cost = if interior && k + 32 <= nd {
                     cost
+                } else if interior {
+                    _mm512_mask_mov_epi16(junk, ((1u64 << (nd - k)) - 1) as __mmask32, cost)
                 } else {
                     let feasible = lanes_between(lo as i64 - k as i64, hi as i64 - k as i64, 32) as __mmask32;
                     let real = lanes_between(0, nd as i64 - k as i64, 32) as __mmask32;
                     _mm512_mask_mov_epi16(junk, real, _mm512_mask_mov_epi16(worst, feasible, cost))
                 };
-                let n = (lanes - k).min(32);
-                // SAFETY: `k + n <= lanes`, inside this pixel's entries.
-                _mm512_mask_storeu_epi16(dst.add(k).cast(), ((1u64 << n) - 1) as __mmask32, cost);
+                // Two 256-bit stores: a pixel's entries start at a multiple of 32 bytes (`lanes`
+                // is a multiple of 16), so neither splits a cache line, where one 512-bit store
+                // would every other pixel when `lanes` is an odd multiple of 16.
+                // SAFETY: `k + 16 <= lanes` (and `k + 32 <= lanes` for the second half), inside
+                // this pixel's entries.
+                _mm256_storeu_si256(dst.add(k).cast(), _mm512_castsi512_si256(cost));
+                if !half {
+                    _mm256_storeu_si256(dst.add(k + 16).cast(), _mm512_extracti64x4_epi64::<1>(cost));
+                }
                 k += 32;
             }
         }

@@ -3,7 +3,7 @@
 //! [`sgm`](crate::sgm) runs them fused; these entry points run each over a whole image so its
 //! throughput can be measured alone.
 
-use crate::cost::infeasible_cost;
+use crate::cost::{infeasible_cost, AdRows, BtRow};
 use crate::simd::{self, padded_lanes};
 use crate::{DisparityMap, GrayImage, Image, MatchingCost, SgmParams};
 
@@ -32,6 +32,50 @@ pub fn hamming_costs(census_left: &Image<u64>, census_right: &Image<u64>, params
             nd,
             worst,
             None,
+            &mut row,
+        );
+        check = check.wrapping_add(u64::from(row[y % row.len()]));
+    }
+    check
+}
+
+/// The matching costs of every row as the aggregation computes them (census Hamming distance,
+/// plus the intensity term for AD-census as `params.matching_cost` says); returns a checksum.
+pub fn matching_costs(
+    left: &GrayImage,
+    right: &GrayImage,
+    census_left: &Image<u64>,
+    census_right: &Image<u64>,
+    params: &SgmParams,
+) -> u64 {
+    let nd = params.range.count();
+    let census_bits = (params.census.width * params.census.height - 1) as u32;
+    let worst = infeasible_cost(census_bits, params.matching_cost);
+    let mut row = vec![0u16; census_left.width() * padded_lanes(nd)];
+    let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());
+    let mut check = 0u64;
+    for y in 0..census_left.height() {
+        let ad = match params.matching_cost {
+            MatchingCost::AdCensus { weight, cap } => {
+                bt_left.fill(left.row(y), false);
+                bt_right.fill(right.row(y), true);
+                Some(AdRows {
+                    left: &bt_left,
+                    right: &bt_right,
+                    weight: u16::from(weight),
+                    cap: u16::from(cap),
+                })
+            }
+            MatchingCost::Census => None,
+        };
+        simd::cost_row(
+            simd::features(),
+            census_left.row(y),
+            census_right.row(y),
+            params.range.min,
+            nd,
+            worst,
+            ad,
             &mut row,
         );
         check = check.wrapping_add(u64::from(row[y % row.len()]));
