@@ -190,6 +190,58 @@ pub fn weighted_median(
     sigma_color: f32,
     fill_holes: bool,
 ) -> DisparityMap {
+    weighted_median_masked(disparity, guide, radius, sigma_color, fill_holes, None)
+}
+
+/// [`weighted_median`] at the depth edges only: pixels whose `(2·radius + 1)²` window holds
+/// valid disparities more than `jump` px apart. Elsewhere the window's disparities agree, so the
+/// median would change them by at most `jump`; skipping them makes the filter several times
+/// cheaper on typical maps, where depth edges cover a small share of the pixels.
+pub(crate) fn weighted_median_at_edges(
+    disparity: &DisparityMap,
+    guide: &crate::GrayImage,
+    radius: usize,
+    sigma_color: f32,
+    jump: f32,
+) -> DisparityMap {
+    let edges = depth_edges(disparity, radius, jump);
+    weighted_median_masked(disparity, guide, radius, sigma_color, false, Some(&edges))
+}
+
+/// 1 where the valid disparities of the `(2·radius + 1)²` window around a pixel span more than
+/// `jump`, else 0 (separable running minimum and maximum).
+fn depth_edges(disparity: &DisparityMap, radius: usize, jump: f32) -> crate::Image<u8> {
+    let (w, h) = disparity.size();
+    let (mut lo, mut hi) = (vec![f32::INFINITY; w * h], vec![f32::NEG_INFINITY; w * h]);
+    for y in 0..h {
+        let row = disparity.row(y);
+        for x in 0..w {
+            for &v in &row[x.saturating_sub(radius)..(x + radius + 1).min(w)] {
+                if !v.is_nan() {
+                    lo[y * w + x] = lo[y * w + x].min(v);
+                    hi[y * w + x] = hi[y * w + x].max(v);
+                }
+            }
+        }
+    }
+    crate::Image::from_fn(w, h, |x, y| {
+        let (mut a, mut b) = (f32::INFINITY, f32::NEG_INFINITY);
+        for yy in y.saturating_sub(radius)..(y + radius + 1).min(h) {
+            a = a.min(lo[yy * w + x]);
+            b = b.max(hi[yy * w + x]);
+        }
+        u8::from(b - a > jump)
+    })
+}
+
+fn weighted_median_masked(
+    disparity: &DisparityMap,
+    guide: &crate::GrayImage,
+    radius: usize,
+    sigma_color: f32,
+    fill_holes: bool,
+    only_at: Option<&crate::Image<u8>>,
+) -> DisparityMap {
     let (width, height) = disparity.size();
     assert_eq!(guide.size(), (width, height), "guide image size");
     if radius == 0 || width == 0 {
@@ -212,6 +264,11 @@ pub fn weighted_median(
         for (x, o) in row.iter_mut().enumerate() {
             if o.is_nan() && !fill_holes {
                 continue;
+            }
+            if let Some(edges) = only_at {
+                if edges.row(y)[x] == 0 {
+                    continue;
+                }
             }
             let centre = guide.get(x, y) / 257;
             let xs = x.saturating_sub(radius)..(x + radius + 1).min(width);
