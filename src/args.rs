@@ -302,6 +302,11 @@ pub struct MatchArgs {
     #[arg(long, value_name = "N", help_heading = "Matching")]
     pub speckle_size: Option<usize>,
 
+    /// SGM: move disparity edges onto the intensity edges of the left image within PX pixels
+    /// (undoes the edge fattening of window costs); 0 disables [default: 5].
+    #[arg(long, value_name = "PX", help_heading = "Matching")]
+    pub edge_snap: Option<usize>,
+
     /// SGM: add a `confidence` channel to the depth EXR: per pixel in [0, 1], the census
     /// agreement at the match times the share of neighbours within 1 px; 0 where the disparity
     /// is invalid or was filled.

@@ -613,6 +613,7 @@ fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
                 uniqueness_ratio: args.uniqueness.unwrap_or(defaults.uniqueness_ratio),
                 lr_max_diff: lr_max_diff(args, defaults.lr_max_diff)?,
                 subpixel: args.subpixel.map(subpixel).unwrap_or(defaults.subpixel),
+                edge_snap_radius: args.edge_snap.unwrap_or(defaults.edge_snap_radius),
                 ..defaults
             };
             Ok(Matcher::Sgm(params))
@@ -625,6 +626,7 @@ fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
             reject(args.fill, "--fill", "sgm")?;
             reject(args.speckle_size.is_some(), "--speckle-size", "sgm")?;
             reject(args.single_pass, "--single-pass", "sgm")?;
+            reject(args.edge_snap.is_some(), "--edge-snap", "sgm")?;
             reject(args.confidence, "--confidence", "sgm")?;
             reject(args.min_confidence.is_some(), "--min-confidence", "sgm")?;
             let defaults = BmParams::default();

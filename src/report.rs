@@ -103,6 +103,9 @@ pub enum MatcherReport {
         median: bool,
         speckle_size: usize,
         weighted_median_radius: usize,
+        /// Edge snapping radius (px, 0 = off) and passes.
+        edge_snap_radius: usize,
+        edge_snap_passes: usize,
         fill: bool,
     },
     Bm {
@@ -180,6 +183,8 @@ impl MatcherReport {
                 median: p.median,
                 speckle_size: p.speckle_size,
                 weighted_median_radius: p.wmf_radius,
+                edge_snap_radius: p.edge_snap_radius,
+                edge_snap_passes: p.edge_snap_passes,
                 fill: p.fill,
             },
             Matcher::Bm(p) => MatcherReport::Bm {

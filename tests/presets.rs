@@ -111,6 +111,24 @@ fn presets_are_reported_and_only_for_sgm() {
     bm.extend(["--matcher", "bm", "--preset", "accurate"]);
     let err = run_in(dir.path(), &bm);
     assert!(err.assert_error(2).contains("--preset"));
+
+    // Edge snapping: on by default, reported, and --edge-snap 0 turns it off.
+    run_in(dir.path(), &base).assert_success();
+    let matcher = json(&fs::read_to_string(&stats).unwrap())["matcher"].clone();
+    assert_eq!(matcher["edge_snap_radius"].as_u64(), Some(5));
+    let snapped = stereo_io::read_pfm(&dir.path().join("d.pfm")).unwrap();
+    let mut off = base.to_vec();
+    off.extend(["--edge-snap", "0"]);
+    run_in(dir.path(), &off).assert_success();
+    let matcher = json(&fs::read_to_string(&stats).unwrap())["matcher"].clone();
+    assert_eq!(matcher["edge_snap_radius"].as_u64(), Some(0));
+    let unsnapped = stereo_io::read_pfm(&dir.path().join("d.pfm")).unwrap();
+    let same = |a: f32, b: f32| a == b || (a.is_nan() && b.is_nan());
+    let moved = snapped.as_slice().iter().zip(unsnapped.as_slice()).filter(|&(&a, &b)| !same(a, b)).count();
+    assert!(moved > 0, "snapping changed no pixel of the sample's box edges");
+    let mut bm = base.to_vec();
+    bm.extend(["--matcher", "bm", "--edge-snap", "3"]);
+    assert!(run_in(dir.path(), &bm).assert_error(2).contains("--edge-snap"));
 }
 
 #[test]

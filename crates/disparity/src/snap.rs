@@ -32,29 +32,50 @@ pub(crate) fn snap_edges(disparity: &DisparityMap, guide: &GrayImage, radius: us
     if radius == 0 || w == 0 || h == 0 {
         return disparity.clone();
     }
-    let grey: Vec<f32> = guide.as_slice().iter().map(|&v| f32::from(v) / 257.0).collect();
+    let mut grey = vec![0f32; w * h];
+    grey.par_chunks_mut(w).zip(guide.as_slice().par_chunks(w)).for_each(|(g, v)| {
+        for (g, &v) in g.iter_mut().zip(v) {
+            *g = f32::from(v) / 257.0;
+        }
+    });
     let mut rows = disparity.clone();
     rows.as_mut_slice().par_chunks_mut(w).enumerate().for_each(|(y, out)| {
         snap_line(disparity.row(y), &grey[y * w..(y + 1) * w], radius, out);
     });
-    // Columns, through transposed copies so each column is contiguous.
-    let d_t = transpose(rows.as_slice(), w, h);
-    let g_t = transpose(&grey, w, h);
-    let mut out_t = d_t.clone();
-    out_t.par_chunks_mut(h).enumerate().for_each(|(x, out)| {
-        snap_line(&d_t[x * h..(x + 1) * h], &g_t[x * h..(x + 1) * h], radius, out);
-    });
-    DisparityMap::from_vec(w, h, transpose(&out_t, h, w)).expect("same size")
-}
-
-fn transpose(a: &[f32], w: usize, h: usize) -> Vec<f32> {
-    let mut t = vec![0.0; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            t[x * h + y] = a[y * w + x];
+    // Columns, a block of neighbouring columns at a time: each block is gathered into contiguous
+    // columns (one cache line per row read), snapped, and written back row by row.
+    const BLOCK: usize = 16;
+    let src = rows.as_slice();
+    let blocks: Vec<(usize, Vec<f32>)> = (0..w.div_ceil(BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let (x0, n) = (b * BLOCK, BLOCK.min(w - b * BLOCK));
+            let (mut d, mut g) = (vec![0f32; n * h], vec![0f32; n * h]);
+            for y in 0..h {
+                for j in 0..n {
+                    d[j * h + y] = src[y * w + x0 + j];
+                    g[j * h + y] = grey[y * w + x0 + j];
+                }
+            }
+            let mut out = d.clone();
+            for j in 0..n {
+                let col = j * h..(j + 1) * h;
+                snap_line(&d[col.clone()], &g[col.clone()], radius, &mut out[col]);
+            }
+            (x0, out)
+        })
+        .collect();
+    let mut snapped = DisparityMap::new(w, h, 0.0);
+    let dst = snapped.as_mut_slice();
+    for (x0, out) in blocks {
+        let n = out.len() / h;
+        for y in 0..h {
+            for j in 0..n {
+                dst[y * w + x0 + j] = out[j * h + y];
+            }
         }
     }
-    t
+    snapped
 }
 
 /// One row or column: `src` the disparities, `grey` the intensities, results into `out`
