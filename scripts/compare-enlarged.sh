@@ -8,7 +8,7 @@
 # Usage: scripts/compare-enlarged.sh [RUNS=3] [THREADS=2]
 # Env: PY (python with numpy/cv2, default /tmp/peer-venv/bin/python), OUT (default /tmp/enlarged),
 #      FACTORS (default 2,4), SCENES (comma list), MODES (our CLI arg sets separated by ';',
-#      default "--paths 8;--paths 4"; add "--paths 4 --single-pass" once the CLI has it), OPENCV (default SGBM_3WAY,HH),
+#      default "--preset balanced;--preset fast"), OPENCV (default SGBM_3WAY,HH),
 #      NO_BUILD=1.
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
@@ -17,7 +17,7 @@ PY="${PY:-/tmp/peer-venv/bin/python}"
 OUT="${OUT:-/tmp/enlarged}"
 TOOL_DIR="${TOOL_DIR:-$ROOT/../shared/tools/opencv-compare}"
 EVAL="$TOOL_DIR/stereo_eval.py"
-MODES="${MODES:---paths 8;--paths 4}"
+MODES="${MODES:---preset balanced;--preset fast}"
 OPENCV="${OPENCV:-SGBM_3WAY,HH}"
 cd "$ROOT"
 [ -n "${NO_BUILD:-}" ] || cargo build --release --bin stereo-depth >&2
@@ -43,7 +43,7 @@ PYEOF
     for _ in $(seq "$RUNS"); do
       # shellcheck disable=SC2086
       "$BIN" "$dir/left.png" "$dir/right.png" $RIG --threads "$THREADS" --max-disparity "$ndisp" \
-        --disparity "$dir/ours.pfm" --stats "$dir/ours.json" -o /tmp/stereo-depth-enlarged.exr --quiet $mode
+        --disparity "$dir/ours.pfm" --stats "$dir/ours.json" -o /tmp/stereo-depth-enlarged.exr --quiet $mode >/dev/null
       times+=("$("$PY" -c 'import json,sys; print(json.load(open(sys.argv[1]))["timings_ms"]["match"])' "$dir/ours.json")")
     done
     ms="$(printf '%s\n' "${times[@]}" | sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')"
