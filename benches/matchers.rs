@@ -50,7 +50,7 @@ fn stage_benches(c: &mut Criterion) {
     eprintln!("SGM kernels: {}", stages::simd_level());
     for (stage, run) in [
         ("sgm_stage_census", 0),
-        ("sgm_stage_hamming_cost", 1),
+        ("sgm_stage_matching_cost", 1),
         ("sgm_stage_aggregate_wta", 2),
         ("sgm_stage_median", 3),
     ] {
@@ -69,7 +69,7 @@ fn stage_benches(c: &mut Criterion) {
                     b.iter(|| stages::census(&left, &params))
                 }),
                 1 => group.bench_function(BenchmarkId::from_parameter(&id), |b| {
-                    b.iter(|| stages::hamming_costs(&cl, &cr, &params))
+                    b.iter(|| stages::matching_costs(&left, &right, &cl, &cr, &params))
                 }),
                 2 => group.bench_function(BenchmarkId::from_parameter(&id), |b| {
                     b.iter(|| stages::aggregate_and_select_disparities(&left, &cl, &cr, &params))

@@ -14,31 +14,6 @@ pub fn census(image: &GrayImage, params: &SgmParams) -> Image<u64> {
     out
 }
 
-/// Hamming costs of every row (as the aggregation computes them, once per pass; census cost
-/// only, whatever `params.matching_cost` says); returns a checksum so the work cannot be
-/// optimised away.
-pub fn hamming_costs(census_left: &Image<u64>, census_right: &Image<u64>, params: &SgmParams) -> u64 {
-    let nd = params.range.count();
-    let worst =
-        infeasible_cost((params.census.width * params.census.height - 1) as u32, MatchingCost::Census);
-    let mut row = vec![0u16; census_left.width() * padded_lanes(nd)];
-    let mut check = 0u64;
-    for y in 0..census_left.height() {
-        simd::cost_row(
-            simd::features(),
-            census_left.row(y),
-            census_right.row(y),
-            params.range.min,
-            nd,
-            worst,
-            None,
-            &mut row,
-        );
-        check = check.wrapping_add(u64::from(row[y % row.len()]));
-    }
-    check
-}
-
 /// The matching costs of every row as the aggregation computes them (census Hamming distance,
 /// plus the intensity term for AD-census as `params.matching_cost` says); returns a checksum.
 pub fn matching_costs(

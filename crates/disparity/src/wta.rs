@@ -69,6 +69,27 @@ pub(crate) fn subpixel_offset(method: Subpixel, before: f32, best: f32, after: f
     offset.clamp(-0.5, 0.5)
 }
 
+/// The uniqueness test: whether a disparity more than one index away from `best` (within `ks`)
+/// costs less than `(100 + ratio) %` of the best cost. Ratio 0 never rejects.
+#[inline(always)]
+fn ambiguous(c: &[u16], ks: std::ops::Range<usize>, best: usize, ratio: u32) -> bool {
+    if ratio == 0 {
+        return false;
+    }
+    let second = ks.filter(|k| k.abs_diff(best) > 1).map(|k| c[k]).min();
+    second.is_some_and(|second| u64::from(c[best]) * u64::from(100 + ratio) > u64::from(second) * 100)
+}
+
+/// The subpixel offset of winner `best` from its neighbours' costs (0 at the ends of `ks`).
+#[inline(always)]
+fn refined_offset(c: &[u16], ks: std::ops::Range<usize>, best: usize, method: Subpixel) -> f32 {
+    if best > ks.start && best + 1 < ks.end {
+        subpixel_offset(method, f32::from(c[best - 1]), f32::from(c[best]), f32::from(c[best + 1]))
+    } else {
+        0.0
+    }
+}
+
 /// Per-thread buffers of [`select_row`], allocated once per pass.
 pub(crate) struct WtaScratch {
     /// Right view, indexed by `width - 1 - xr`: the best cost so far and its disparity index.
@@ -194,14 +215,9 @@ fn select_row_generic(
         }
         let c = &costs[x * nd..(x + 1) * nd];
         let best = ks.start + simd::argmin(level, &c[ks.clone()]).1;
-        if sel.uniqueness_ratio > 0 {
-            let second = ks.clone().filter(|k| k.abs_diff(best) > 1).map(|k| c[k]).min();
-            if let Some(second) = second {
-                if u64::from(c[best]) * u64::from(100 + sel.uniqueness_ratio) > u64::from(second) * 100 {
-                    *o = tagged_nan(PixelStatus::Ambiguous);
-                    continue;
-                }
-            }
+        if ambiguous(c, ks.clone(), best, sel.uniqueness_ratio) {
+            *o = tagged_nan(PixelStatus::Ambiguous);
+            continue;
         }
         let d_int = sel.range.min as i64 + best as i64;
         if let Some(max_diff) = sel.lr_max_diff {
@@ -212,12 +228,7 @@ fn select_row_generic(
                 continue;
             }
         }
-        let offset = if best > ks.start && best + 1 < ks.end {
-            subpixel_offset(sel.subpixel, f32::from(c[best - 1]), f32::from(c[best]), f32::from(c[best + 1]))
-        } else {
-            0.0
-        };
-        *o = d_int as f32 + offset;
+        *o = d_int as f32 + refined_offset(c, ks, best, sel.subpixel);
     }
 }
 
@@ -234,7 +245,9 @@ fn select_row_generic(
 mod fused {
     use std::arch::x86_64::*;
 
-    use super::{feasible_left, subpixel_offset, tagged_nan, PixelStatus, Selection, WtaScratch, NO_MATCH};
+    use super::{
+        ambiguous, feasible_left, refined_offset, tagged_nan, PixelStatus, Selection, WtaScratch, NO_MATCH,
+    };
 
     /// Registers of 32 lanes per window array: up to 8, i.e. 256 disparities.
     const MAX_VECTORS: usize = 8;
@@ -356,27 +369,12 @@ mod fused {
                 }
             }
             let c = &costs[x * nd..(x + 1) * nd];
-            if sel.uniqueness_ratio > 0 {
-                let second = ks.clone().filter(|k| k.abs_diff(best) > 1).map(|k| c[k]).min();
-                if let Some(second) = second {
-                    if u64::from(c[best]) * u64::from(100 + sel.uniqueness_ratio) > u64::from(second) * 100 {
-                        out[x] = tagged_nan(PixelStatus::Ambiguous);
-                        continue;
-                    }
-                }
+            if ambiguous(c, ks.clone(), best, sel.uniqueness_ratio) {
+                out[x] = tagged_nan(PixelStatus::Ambiguous);
+                continue;
             }
-            let offset = if best > ks.start && best + 1 < ks.end {
-                subpixel_offset(
-                    sel.subpixel,
-                    f32::from(c[best - 1]),
-                    f32::from(c[best]),
-                    f32::from(c[best + 1]),
-                )
-            } else {
-                0.0
-            };
             left_best[x] = best as u16;
-            out[x] = (min + best as i64) as f32 + offset;
+            out[x] = (min + best as i64) as f32 + refined_offset(c, ks, best, sel.subpixel);
         }
         if !lr {
             return;
