@@ -357,8 +357,8 @@ impl<T: PathCost> PassState<T> {
         let lanes = T::lanes(nd);
         let stride = lanes + 2;
         let diagonal_width = if inputs.paths == PathCount::Eight { width } else { 0 };
-        let narrow =
-            if lanes == padded_lanes(nd) && std::mem::size_of::<T>() == 2 { 0 } else { width * lanes };
+        // The `u16` passes use the cost row itself.
+        let narrow = if std::mem::size_of::<T>() == 2 { 0 } else { width * lanes };
         PassState {
             pass,
             prev_y: None,
