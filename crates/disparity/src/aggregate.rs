@@ -187,7 +187,14 @@ pub(crate) fn pass_state_bytes(width: usize, nd: usize, paths: PathCount) -> usi
     let stride = lanes + 2;
     let row_paths = if paths == PathCount::Eight { 3 } else { 1 };
     // cost row + two rows per row path (+ minima) + 2×2 horizontal + zero vector + WTA scratch
-    2 * (width * lanes + row_paths * 2 * width * (stride + 1) + 5 * stride) + WtaScratch::bytes(width)
+    // (16-bit path costs: the 8-bit passes need less), saturating for absurd sizes.
+    let cost_row = width.saturating_mul(lanes);
+    let row_path_rows = width.saturating_mul(stride + 1).saturating_mul(2 * row_paths);
+    cost_row
+        .saturating_add(row_path_rows)
+        .saturating_add(5 * stride)
+        .saturating_mul(2)
+        .saturating_add(WtaScratch::bytes(width))
 }
 
 /// One row of the shared output: the path sums and the disparities, and whether one pass has

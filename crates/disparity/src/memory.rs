@@ -57,25 +57,27 @@ impl MemoryPlan {
 /// Plans the memory for a `width × height` pair within `params.max_memory` if possible.
 pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPlan {
     let nd = params.range.count();
-    let pixels = width * height;
-    let census = 2 * 8 * pixels;
-    let disparity = 4 * pixels * if params.median { 2 } else { 1 };
-    let fixed = census + disparity;
-    let row_bytes = 2 * width * nd;
+    // Saturating throughout: an absurd size plans `usize::MAX` bytes (refused) instead of
+    // overflowing.
+    let pixels = width.saturating_mul(height);
+    let census = pixels.saturating_mul(2 * 8);
+    let disparity = pixels.saturating_mul(4 * if params.median { 2 } else { 1 });
+    let fixed = census.saturating_add(disparity);
+    let row_bytes = width.saturating_mul(nd).saturating_mul(2);
     let (strips, stream_threads, bytes, too_large) = if params.single_pass {
         let threads = rayon::current_num_threads().clamp(1, height.max(1));
-        let per_thread = pass_state_bytes(width, nd, params.paths) + row_bytes;
+        let per_thread = pass_state_bytes(width, nd, params.paths).saturating_add(row_bytes);
         #[cfg(test)]
         let threads = tests::STRIPS.get().map_or(threads, |s| s.rows);
-        let bytes = fixed + threads * per_thread;
+        let bytes = fixed.saturating_add(threads.saturating_mul(per_thread));
         #[cfg(test)]
         let overlap = tests::STRIPS.get().map_or(OVERLAP_ROWS, |s| s.overlap);
         #[cfg(not(test))]
         let overlap = OVERLAP_ROWS;
         (StripPlan { rows: height, overlap }, threads, bytes, params.max_memory.is_some_and(|m| bytes > m))
     } else {
-        let fixed = fixed + 2 * pass_state_bytes(width, nd, params.paths);
-        let per_row = row_bytes + ROW_SLOT_BYTES;
+        let fixed = fixed.saturating_add(pass_state_bytes(width, nd, params.paths).saturating_mul(2));
+        let per_row = row_bytes.saturating_add(ROW_SLOT_BYTES);
         let default_rows = (DEFAULT_STRIP_BYTES / row_bytes.max(1)).max(MIN_DEFAULT_STRIP_ROWS);
         let mut rows = tuning("STEREO_DISPARITY_STRIP_ROWS").unwrap_or(default_rows).clamp(1, height.max(1));
         let mut too_large = false;
@@ -90,7 +92,7 @@ pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPla
         let overlap = tuning("STEREO_DISPARITY_OVERLAP").unwrap_or(OVERLAP_ROWS);
         #[cfg(test)]
         let (rows, overlap) = tests::STRIPS.get().map_or((rows, overlap), |s| (s.rows, s.overlap));
-        (StripPlan { rows, overlap }, 1, fixed + rows * per_row, too_large)
+        (StripPlan { rows, overlap }, 1, fixed.saturating_add(rows.saturating_mul(per_row)), too_large)
     };
     MemoryPlan { strips, stream_threads, bytes, too_large }
 }
@@ -130,5 +132,17 @@ pub(crate) mod tests {
         assert!(tiny.too_large && tiny.check(6000, 4000, &params).is_err());
         let small = plan(64, 48, &SgmParams { range: crate::DisparityRange::new(0, 16).unwrap(), ..params });
         assert_eq!(small.strips.rows, 48, "a small image is one strip: exact SGM");
+    }
+
+    #[test]
+    fn absurd_sizes_plan_everything_instead_of_overflowing() {
+        let params =
+            SgmParams { range: crate::DisparityRange::new(0, 4096).unwrap(), ..SgmParams::default() };
+        for single_pass in [false, true] {
+            let params = SgmParams { single_pass, max_memory: Some(1 << 40), ..params.clone() };
+            let p = plan(usize::MAX / 3, usize::MAX / 5, &params);
+            assert_eq!(p.bytes, usize::MAX, "single pass {single_pass}");
+            assert!(p.too_large && p.check(usize::MAX / 3, usize::MAX / 5, &params).is_err());
+        }
     }
 }

@@ -105,7 +105,7 @@ impl WtaScratch {
     }
 
     pub(crate) fn bytes(width: usize) -> usize {
-        6 * width
+        width.saturating_mul(6)
     }
 }
 
