@@ -624,6 +624,16 @@ fn step_row<T: PathCost>(
             };
             let a_out = &mut a_cur.costs[x * stride..(x + 1) * stride];
             let b_out = &mut b_cur.costs[x * stride..(x + 1) * stride];
+            if !store {
+                // Warm-up: the horizontal path starts afresh on every row, so only the paths
+                // that carry into the next row are needed.
+                let [mv, ma, mb] =
+                    T::step(level, c, p1, [v_in, a_in, b_in], [v_out, a_out, b_out], sum, false);
+                v_cur.mins[x] = mv;
+                a_cur.mins[x] = ma;
+                b_cur.mins[x] = mb;
+                continue;
+            }
             let [mh, mv, ma, mb] = T::step(
                 level,
                 c,
@@ -637,6 +647,9 @@ fn step_row<T: PathCost>(
             v_cur.mins[x] = mv;
             a_cur.mins[x] = ma;
             b_cur.mins[x] = mb;
+        } else if !store {
+            let [mv] = T::step(level, c, p1, [v_in], [v_out], sum, false);
+            v_cur.mins[x] = mv;
         } else {
             let [mh, mv] = T::step(level, c, p1, [h_in, v_in], [&mut h_cur[..], v_out], sum, accumulate);
             h_min = mh;
