@@ -1,15 +1,16 @@
-//! Matcher throughput: one group per SGM stage and end to end (SGM 8 and 4 paths, block matching),
-//! at 640×480 and 1280×720 with 64 and 128 disparities. Throughput is W·H·D elements (disparity
-//! evaluations) per second. Keep it short: `cargo bench --bench matchers` (add a filter such as
-//! `-- sgm_end_to_end` to run one group). `STEREO_DISPARITY_SIMD=scalar|avx2` caps the kernels.
+//! Matcher throughput: one group per SGM stage and end to end (SGM 8 and 4 paths in two passes,
+//! 5 and 3 paths in one pass, block matching), at 640×480, 1280×720 and 1920×1080 with 64, 128
+//! and 256 disparities. Throughput is W·H·D elements (disparity evaluations) per second.
+//! `cargo bench --bench matchers` (add a filter such as `-- sgm_end_to_end/3path` to run a part).
+//! `STEREO_DISPARITY_SIMD=scalar|avx2` caps the kernels.
 
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use stereo_disparity::{stages, BmParams, DisparityRange, GrayImage, PathCount, SgmParams};
 
-const SIZES: [(usize, usize); 2] = [(640, 480), (1280, 720)];
-const RANGES: [i32; 2] = [64, 128];
+const SIZES: [(usize, usize); 3] = [(640, 480), (1280, 720), (1920, 1080)];
+const RANGES: [i32; 3] = [64, 128, 256];
 
 /// A textured pair: a smooth hash texture, the right view shifted by a disparity that varies
 /// slowly across the image (a slanted plane plus a nearer block), so the matchers do real work.
@@ -90,8 +91,14 @@ fn end_to_end(c: &mut Criterion) {
     for (w, h, nd, id) in cases() {
         let (left, right) = pair(w, h, nd);
         group.throughput(Throughput::Elements((w * h * nd as usize) as u64));
-        for (name, paths) in [("8path", PathCount::Eight), ("4path", PathCount::Four)] {
-            let params = sgm_params(nd, paths);
+        // The two-pass modes and the single-pass ones (`--preset fast` is "3path-1pass").
+        for (name, paths, single_pass) in [
+            ("8path", PathCount::Eight, false),
+            ("4path", PathCount::Four, false),
+            ("5path-1pass", PathCount::Eight, true),
+            ("3path-1pass", PathCount::Four, true),
+        ] {
+            let params = SgmParams { single_pass, ..sgm_params(nd, paths) };
             group.bench_function(BenchmarkId::new(name, &id), |b| {
                 b.iter(|| stereo_disparity::sgm(&left, &right, &params).unwrap())
             });
