@@ -93,6 +93,19 @@ trait PathCost: Copy + Default + Send + Sync + 'static {
         sum: &mut [u16],
         accumulate: bool,
     ) -> [Self; N];
+    /// [`crate::sweep::sweep_u8`] in this type: a whole-row horizontal path with its state in
+    /// registers, added into `sum`; `false` (nothing done) where there is no such kernel.
+    #[allow(clippy::too_many_arguments)]
+    fn sweep(
+        level: Level,
+        cost: &[Self],
+        lanes: usize,
+        nd: usize,
+        p1: Self,
+        p2: &[Self],
+        sum: &mut [u16],
+        reverse: bool,
+    ) -> bool;
 }
 
 impl PathCost for u16 {
@@ -117,6 +130,9 @@ impl PathCost for u16 {
         accumulate: bool,
     ) -> [u16; N] {
         simd::path_step(level, cost, p1, ins, outs, sum, accumulate)
+    }
+    fn sweep(_: Level, _: &[u16], _: usize, _: usize, _: u16, _: &[u16], _: &mut [u16], _: bool) -> bool {
+        false
     }
 }
 
@@ -146,6 +162,18 @@ impl PathCost for u8 {
         accumulate: bool,
     ) -> [u8; N] {
         path_u8::path_step_u8(level, cost, p1, ins, outs, sum, accumulate)
+    }
+    fn sweep(
+        level: Level,
+        cost: &[u8],
+        lanes: usize,
+        nd: usize,
+        p1: u8,
+        p2: &[u8],
+        sum: &mut [u16],
+        reverse: bool,
+    ) -> bool {
+        crate::sweep::sweep_u8(level, cost, lanes, nd, p1, p2, sum, reverse)
     }
 }
 
@@ -501,6 +529,8 @@ fn stream_rows_generic<T: PathCost>(
 ) {
     let (width, nd) = (inputs.image.width(), inputs.range.count());
     let lanes = T::lanes(nd);
+    // The ← path's P2 per pixel (stepping into `x` from `x + 1`), made once per row.
+    let mut p2_row = vec![T::default(); width];
     for y in warm..y1 {
         if y < y0 {
             step_row(state, inputs, y, level, &mut [], false);
@@ -509,31 +539,36 @@ fn stream_rows_generic<T: PathCost>(
         step_row(state, inputs, y, level, sum, false);
         // ←: right to left over the same cost row (already in `T`), added to the row's sums.
         let row = inputs.image.row(y);
-        let start = PathIn { prev: &state.zero[..], prev_min: T::default(), p2: T::default() };
-        let mut h_min = T::default();
         let cost: &[T] = if state.cost_narrow.is_empty() {
             T::costs(level, &state.cost, nd, &mut [])
         } else {
             &state.cost_narrow
         };
-        for x in (0..width).rev() {
-            let [h_prev, h_cur] = &mut state.horizontal;
-            let h_in = if x + 1 == width {
-                start
-            } else {
-                PathIn { prev: &h_prev[..], prev_min: h_min, p2: T::narrow(inputs.p2.p2(row[x], row[x + 1])) }
-            };
-            let [m] = T::step(
-                level,
-                &cost[x * lanes..(x + 1) * lanes],
-                T::narrow(inputs.p1),
-                [h_in],
-                [&mut h_cur[..]],
-                &mut sum[x * nd..(x + 1) * nd],
-                true,
-            );
-            h_min = m;
-            state.horizontal.swap(0, 1);
+        for (x, p) in p2_row.iter_mut().enumerate().take(width.saturating_sub(1)) {
+            *p = T::narrow(inputs.p2.p2(row[x], row[x + 1]));
+        }
+        if !T::sweep(level, cost, lanes, nd, T::narrow(inputs.p1), &p2_row, sum, true) {
+            let start = PathIn { prev: &state.zero[..], prev_min: T::default(), p2: T::default() };
+            let mut h_min = T::default();
+            for x in (0..width).rev() {
+                let [h_prev, h_cur] = &mut state.horizontal;
+                let h_in = if x + 1 == width {
+                    start
+                } else {
+                    PathIn { prev: &h_prev[..], prev_min: h_min, p2: p2_row[x] }
+                };
+                let [m] = T::step(
+                    level,
+                    &cost[x * lanes..(x + 1) * lanes],
+                    T::narrow(inputs.p1),
+                    [h_in],
+                    [&mut h_cur[..]],
+                    &mut sum[x * nd..(x + 1) * nd],
+                    true,
+                );
+                h_min = m;
+                state.horizontal.swap(0, 1);
+            }
         }
         let out = &mut disparity[(y - y0) * width..(y - y0 + 1) * width];
         select_row(sum, width, nd, inputs.selection, &mut state.scratch, out);

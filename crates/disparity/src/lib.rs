@@ -41,6 +41,7 @@ mod speckle;
 #[doc(hidden)]
 pub mod stages;
 mod status;
+mod sweep;
 mod wta;
 
 pub use bm::block_match;
