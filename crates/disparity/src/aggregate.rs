@@ -29,6 +29,7 @@ use std::sync::Mutex;
 use crate::cost::{AdRows, BtRow};
 use crate::path_u8::{self, padded_lanes_u8, PAD_U8};
 use crate::simd::{self, padded_lanes, Level, PathIn, PAD};
+use crate::sweep::FromRow;
 use crate::wta::{select_row, Selection, WtaScratch};
 use crate::{DisparityRange, GrayImage, Image, PathCount};
 
@@ -93,18 +94,22 @@ trait PathCost: Copy + Default + Send + Sync + 'static {
         sum: &mut [u16],
         accumulate: bool,
     ) -> [Self; N];
-    /// [`crate::sweep::sweep_u8`] in this type: a whole-row horizontal path with its state in
-    /// registers, added into `sum`; `false` (nothing done) where there is no such kernel.
+    /// [`crate::sweep::row_u8`] in this type: a row of a pass with the horizontal path in
+    /// registers; `false` (nothing done) where there is no such kernel.
+    /// Whether [`PathCost::row`] has a kernel for this level and lane count.
+    fn has_row(level: Level, lanes: usize) -> bool;
     #[allow(clippy::too_many_arguments)]
-    fn sweep(
+    fn row<const K: usize>(
         level: Level,
         cost: &[Self],
         lanes: usize,
         nd: usize,
         p1: Self,
         p2: &[Self],
+        from_row: [FromRow<'_, Self>; K],
         sum: &mut [u16],
         reverse: bool,
+        accumulate: bool,
     ) -> bool;
 }
 
@@ -131,7 +136,22 @@ impl PathCost for u16 {
     ) -> [u16; N] {
         simd::path_step(level, cost, p1, ins, outs, sum, accumulate)
     }
-    fn sweep(_: Level, _: &[u16], _: usize, _: usize, _: u16, _: &[u16], _: &mut [u16], _: bool) -> bool {
+    fn has_row(_: Level, _: usize) -> bool {
+        false
+    }
+    #[allow(clippy::too_many_arguments)]
+    fn row<const K: usize>(
+        _: Level,
+        _: &[u16],
+        _: usize,
+        _: usize,
+        _: u16,
+        _: &[u16],
+        _: [FromRow<'_, u16>; K],
+        _: &mut [u16],
+        _: bool,
+        _: bool,
+    ) -> bool {
         false
     }
 }
@@ -163,17 +183,23 @@ impl PathCost for u8 {
     ) -> [u8; N] {
         path_u8::path_step_u8(level, cost, p1, ins, outs, sum, accumulate)
     }
-    fn sweep(
+    fn has_row(level: Level, lanes: usize) -> bool {
+        crate::sweep::row_u8_available(level, lanes)
+    }
+    #[inline(always)]
+    fn row<const K: usize>(
         level: Level,
         cost: &[u8],
         lanes: usize,
         nd: usize,
         p1: u8,
         p2: &[u8],
+        from_row: [FromRow<'_, u8>; K],
         sum: &mut [u16],
         reverse: bool,
+        accumulate: bool,
     ) -> bool {
-        crate::sweep::sweep_u8(level, cost, lanes, nd, p1, p2, sum, reverse)
+        crate::sweep::row_u8(level, cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate)
     }
 }
 
@@ -383,6 +409,9 @@ struct PassState<T> {
     bt_left: BtRow,
     bt_right: BtRow,
     scratch: WtaScratch,
+    /// P2 entering each pixel of the current row along the horizontal, vertical and the two
+    /// diagonal paths (for the whole-row kernel).
+    p2_rows: [Vec<T>; 4],
 }
 
 impl<T: PathCost> PassState<T> {
@@ -407,6 +436,7 @@ impl<T: PathCost> PassState<T> {
             bt_left: BtRow::default(),
             bt_right: BtRow::default(),
             scratch: WtaScratch::new(width),
+            p2_rows: std::array::from_fn(|_| vec![T::default(); width]),
         }
     }
 
@@ -547,7 +577,7 @@ fn stream_rows_generic<T: PathCost>(
         for (x, p) in p2_row.iter_mut().enumerate().take(width.saturating_sub(1)) {
             *p = T::narrow(inputs.p2.p2(row[x], row[x + 1]));
         }
-        if !T::sweep(level, cost, lanes, nd, T::narrow(inputs.p1), &p2_row, sum, true) {
+        if !T::row(level, cost, lanes, nd, T::narrow(inputs.p1), &p2_row, [], sum, true, true) {
             let start = PathIn { prev: &state.zero[..], prev_min: T::default(), p2: T::default() };
             let mut h_min = T::default();
             for x in (0..width).rev() {
@@ -616,8 +646,28 @@ fn step_row<T: PathCost>(
         &mut state.cost,
     );
     let store = !sum.is_empty();
-    let PassState { cost, cost_narrow, vertical, diag_a, diag_b, horizontal, zero, .. } = state;
+    let PassState { cost, cost_narrow, vertical, diag_a, diag_b, horizontal, zero, p2_rows, .. } = state;
     let cost = T::costs(level, cost, nd, cost_narrow);
+    if store
+        && row_kernel(
+            level,
+            inputs,
+            cost,
+            row,
+            prev_row,
+            first_row,
+            forward,
+            p2_rows,
+            [vertical, diag_a, diag_b],
+            sum,
+            accumulate,
+        )
+    {
+        vertical.swap(0, 1);
+        diag_a.swap(0, 1);
+        diag_b.swap(0, 1);
+        return;
+    }
     // A path entering the image: stepping from all-zero costs yields the matching cost.
     let start = PathIn { prev: &zero[..], prev_min: T::default(), p2: T::default() };
     let [v_prev, v_cur] = vertical;
@@ -695,6 +745,91 @@ fn step_row<T: PathCost>(
     vertical.swap(0, 1);
     diag_a.swap(0, 1);
     diag_b.swap(0, 1);
+}
+
+/// The stored rows of [`step_row`] through the whole-row kernel ([`PathCost::row`]), when
+/// there is one for this type and CPU: fills the P2 of every path for the row, then runs it.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn row_kernel<T: PathCost>(
+    level: Level,
+    inputs: &Inputs<'_>,
+    cost: &[T],
+    row: &[u16],
+    prev_row: &[u16],
+    first_row: bool,
+    forward: bool,
+    p2_rows: &mut [Vec<T>; 4],
+    [vertical, diag_a, diag_b]: [&mut [RowPaths<T>; 2]; 3],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> bool {
+    // Only where the kernel exists (the `u16` passes and other CPUs step pixel by pixel).
+    let width = row.len();
+    let nd = inputs.range.count();
+    let lanes = T::lanes(nd);
+    if width == 0 || !T::has_row(level, lanes) {
+        return false;
+    }
+    let p2 = |a: u16, b: u16| T::narrow(inputs.p2.p2(a, b));
+    let [p2_h, p2_v, p2_a, p2_b] = p2_rows;
+    // Pixel x is entered from x - step along the row and from x + dx of the previous row.
+    let step: isize = if forward { 1 } else { -1 };
+    let source = |x: usize, dx: isize| x.checked_add_signed(dx).filter(|&f| f < width);
+    let diagonals = inputs.paths == PathCount::Eight;
+    for x in 0..width {
+        if let Some(f) = source(x, -step) {
+            p2_h[x] = p2(row[x], row[f]);
+        }
+        p2_v[x] = p2(row[x], prev_row[x]);
+        if !diagonals {
+            continue;
+        }
+        if let Some(f) = source(x, -step) {
+            p2_a[x] = p2(row[x], prev_row[f]);
+        }
+        if let Some(f) = source(x, step) {
+            p2_b[x] = p2(row[x], prev_row[f]);
+        }
+    }
+    fn from<'a, T>(
+        paths: &'a mut [RowPaths<T>; 2],
+        dx: isize,
+        p2: &'a [T],
+        first_row: bool,
+    ) -> FromRow<'a, T> {
+        let [prev, cur] = paths;
+        FromRow {
+            prev: if first_row { &[] } else { &prev.costs[..] },
+            prev_mins: if first_row { &[] } else { &prev.mins[..] },
+            dx,
+            p2,
+            out: &mut cur.costs[..],
+            out_mins: &mut cur.mins[..],
+        }
+    }
+    let (cost, p1) = (&cost[..width * lanes], T::narrow(inputs.p1));
+    if diagonals {
+        let paths = [
+            from(vertical, 0, p2_v, first_row),
+            from(diag_a, -step, p2_a, first_row),
+            from(diag_b, step, p2_b, first_row),
+        ];
+        T::row(level, cost, lanes, nd, p1, p2_h, paths, sum, !forward, accumulate)
+    } else {
+        T::row(
+            level,
+            cost,
+            lanes,
+            nd,
+            p1,
+            p2_h,
+            [from(vertical, 0, p2_v, first_row)],
+            sum,
+            !forward,
+            accumulate,
+        )
+    }
 }
 
 #[cfg(test)]

@@ -1,13 +1,14 @@
-//! A horizontal SGM path over a whole row on 8-bit path costs, with the path state kept in
+//! The path steps of a whole row on 8-bit path costs, with the horizontal path kept in
 //! registers.
 //!
 //! The per-pixel kernel ([`crate::path_u8::path_step_u8`]) reads the previous pixel's path costs
 //! from memory at offsets −1, 0 and +1 lanes right after the previous step stored them. Along a
-//! row that is one long dependency chain, and loads straddling two recent vector stores cannot be
-//! forwarded from the store buffer, so every pixel waited for its predecessor's stores to reach
-//! the cache. Here the path vector never leaves the registers: the `d ± 1` neighbours come from
-//! two byte permutations (AVX-512 VBMI) and the path minimum is reduced to a broadcast without a
-//! trip through a general register. The results are those of
+//! row the horizontal path is one long dependency chain, and loads straddling two recent vector
+//! stores cannot be forwarded from the store buffer, so every pixel waited for its predecessor's
+//! stores to reach the cache. Here the horizontal path vector never leaves the registers: its
+//! `d ± 1` neighbours come from in-register byte shifts and its minimum is reduced to a broadcast
+//! without a trip through a general register. The paths continuing from the previous row (read
+//! long after they were stored) stay in memory. The results are those of
 //! [`crate::path_u8::path_step_u8_scalar`] pixel by pixel.
 
 use crate::path_u8::LANES_U8;
@@ -17,44 +18,71 @@ use crate::simd::Level;
 /// per-pixel kernel.
 const MAX_REGISTER_LANES: usize = 256;
 
-/// Runs one horizontal path over a row and adds its path costs into `sum`.
+/// A path continuing from the previous row of the pass: from pixel `x + dx` of that row into
+/// pixel `x`.
+pub(crate) struct FromRow<'a, T = u8> {
+    /// The previous row's path costs (`lanes + 2` per pixel, the disparities at `1..=lanes`) and
+    /// minima; both empty when the path enters the image on this row.
+    pub prev: &'a [T],
+    pub prev_mins: &'a [T],
+    /// Column of the source pixel relative to `x` (−1, 0 or 1); outside the row the path enters
+    /// the image at `x`.
+    pub dx: isize,
+    /// P2 for entering each pixel along this path.
+    pub p2: &'a [T],
+    /// This row's path costs and minima, laid out as `prev`.
+    pub out: &'a mut [T],
+    pub out_mins: &'a mut [T],
+}
+
+/// Whether [`row_u8`] has a kernel for this level and lane count.
+pub(crate) fn row_u8_available(level: Level, lanes: usize) -> bool {
+    cfg!(target_arch = "x86_64") && level == Level::Avx512 && lanes <= MAX_REGISTER_LANES
+}
+
+/// Runs one row of a pass: the horizontal path (right to left when `reverse`, else left to
+/// right; entering pixel `x` from its predecessor costs `p2[x]`, the first pixel's entry is not
+/// read) and the `K` paths from the previous row, storing (or, with `accumulate`, adding) the sum
+/// of their path costs into `sum` (`nd` per pixel).
 ///
 /// `cost` holds `lanes` 8-bit matching costs per pixel ([`crate::path_u8::padded_lanes_u8`]
-/// lanes, 255 past the last disparity), `sum` the row's `nd` sums per pixel. The path
-/// runs right to left when `reverse`, else left to right; entering pixel `x` from its
-/// predecessor costs `p2[x]` for a jump of more than one disparity (`p2[x]` of the first pixel
-/// is not read). Returns `false`, touching nothing, when this CPU or this lane count has no
-/// register kernel; the caller then steps pixel by pixel.
+/// lanes, 255 past the last disparity). Returns `false`, touching nothing, when this CPU or this
+/// lane count has no register kernel; the caller then steps pixel by pixel.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn sweep_u8(
+pub(crate) fn row_u8<const K: usize>(
     level: Level,
     cost: &[u8],
     lanes: usize,
     nd: usize,
     p1: u8,
     p2: &[u8],
+    from_row: [FromRow<'_>; K],
     sum: &mut [u16],
     reverse: bool,
+    accumulate: bool,
 ) -> bool {
     assert!(lanes.is_multiple_of(LANES_U8) && nd <= lanes && lanes > 0);
     let width = cost.len() / lanes;
     assert!(cost.len() == width * lanes && p2.len() == width && sum.len() == width * nd);
-    if width == 0 || lanes > MAX_REGISTER_LANES || level != Level::Avx512 {
+    let stride = lanes + 2;
+    for path in &from_row {
+        assert!(path.prev.is_empty() || (path.prev.len() == width * stride && path.prev_mins.len() == width));
+        assert!(path.dx.abs() <= 1 && path.p2.len() == width);
+        assert!(path.out.len() == width * stride && path.out_mins.len() == width);
+    }
+    if width == 0 || !row_u8_available(level, lanes) {
         return false;
     }
     #[cfg(target_arch = "x86_64")]
     {
-        if !std::arch::is_x86_feature_detected!("avx512vbmi") {
-            return false;
-        }
-        // SAFETY: AVX-512 (F/BW/VL, checked by the caller's level) and VBMI are present; the
-        // lengths were checked above and `lanes <= 64 * NV` for the chosen `NV`.
+        // SAFETY: AVX-512 F/BW/VL is present (the level is only chosen when it is); the lengths
+        // were checked above and `lanes <= 64 * NV` for the chosen `NV`.
         unsafe {
             match lanes.div_ceil(64) {
-                1 => x86::sweep_avx512::<1>(cost, lanes, nd, p1, p2, sum, reverse),
-                2 => x86::sweep_avx512::<2>(cost, lanes, nd, p1, p2, sum, reverse),
-                3 => x86::sweep_avx512::<3>(cost, lanes, nd, p1, p2, sum, reverse),
-                _ => x86::sweep_avx512::<4>(cost, lanes, nd, p1, p2, sum, reverse),
+                1 => x86::row_avx512::<1, K>(cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate),
+                2 => x86::row_avx512::<2, K>(cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate),
+                3 => x86::row_avx512::<3, K>(cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate),
+                _ => x86::row_avx512::<4, K>(cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate),
             }
         }
         true
@@ -66,6 +94,8 @@ pub(crate) fn sweep_u8(
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     use std::arch::x86_64::*;
+
+    use super::FromRow;
 
     /// The minimum of the 64 unsigned bytes of `m`, in every byte.
     #[inline]
@@ -82,41 +112,49 @@ mod x86 {
         _mm512_shuffle_epi8(m, _mm512_setzero_si512())
     }
 
-    /// AVX-512 VBMI [`super::sweep_u8`] with the path in `NV` registers of 64 lanes.
+    /// The 64 lanes one below (`d - 1`) and one above (`d + 1`) those of `v`, with `lower` and
+    /// `upper` the registers holding the lanes below and above it: a 128-bit-lane rotation
+    /// (`valignq`) then a byte alignment within 128-bit lanes (`vpalignr`).
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw")]
+    fn neighbours(lower: __m512i, v: __m512i, upper: __m512i) -> (__m512i, __m512i) {
+        // [top 128 bits of lower, low 384 bits of v] and [high 384 bits of v, low 128 of upper].
+        let down = _mm512_alignr_epi64::<6>(v, lower);
+        let up = _mm512_alignr_epi64::<2>(upper, v);
+        (_mm512_alignr_epi8::<15>(v, down), _mm512_alignr_epi8::<1>(up, v))
+    }
+
+    /// AVX-512 [`super::row_u8`] with the horizontal path in `NV` registers of 64 lanes.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F/BW/VL and VBMI; lengths as checked by [`super::sweep_u8`], and
+    /// The CPU must have AVX-512F/BW/VL; lengths as checked by [`super::row_u8`], and
     /// `64 * (NV - 1) < lanes <= 64 * NV`.
-    #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
-    pub(super) unsafe fn sweep_avx512<const NV: usize>(
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) unsafe fn row_avx512<const NV: usize, const K: usize>(
         cost: &[u8],
         lanes: usize,
         nd: usize,
         p1: u8,
         p2: &[u8],
+        mut from_row: [FromRow<'_>; K],
         sum: &mut [u16],
         reverse: bool,
+        accumulate: bool,
     ) {
         let width = cost.len() / lanes;
+        let stride = lanes + 2;
         let pad = _mm512_set1_epi8(-1);
         let p1v = _mm512_set1_epi8(p1 as i8);
         // Lanes past `lanes` are loaded as the pad (255), like the pads of the memory layout.
-        let load_mask: [__mmask64; NV] = std::array::from_fn(|i| {
-            let n = lanes.saturating_sub(64 * i).min(64);
+        let lane_mask: [__mmask64; NV] = std::array::from_fn(|v| {
+            let n = lanes.saturating_sub(64 * v).min(64);
             if n == 64 {
                 !0
             } else {
                 (1u64 << n) - 1
             }
         });
-        // Byte indices for `_mm512_permutex2var_epi8(a, idx, b)` (bit 6 picks `b`): lane j of
-        // "d - 1" is lane j - 1 of this register (b), lane 0 the last lane of the one below (a);
-        // lane j of "d + 1" is lane j + 1 of this register (a), lane 63 the first of the next (b).
-        let below: [u8; 64] = std::array::from_fn(|j| if j == 0 { 63 } else { 64 + j as u8 - 1 });
-        let above: [u8; 64] = std::array::from_fn(|j| if j == 63 { 64 } else { j as u8 + 1 });
-        let below = _mm512_loadu_si512(below.as_ptr().cast());
-        let above = _mm512_loadu_si512(above.as_ptr().cast());
-        let sum_blocks = nd.div_ceil(32);
         let sum_mask = |q: usize| -> __mmask32 {
             let n = nd - 32 * q;
             if n >= 32 {
@@ -125,6 +163,13 @@ mod x86 {
                 (1u32 << n) - 1
             }
         };
+        let sum_blocks = nd.div_ceil(32);
+        // One step of a path from its previous vector `prev` (minimum `prev_min` broadcast).
+        let step = |c: __m512i, prev: __m512i, l: __m512i, r: __m512i, prev_min: __m512i, jump: __m512i| {
+            let near = _mm512_adds_epu8(_mm512_min_epu8(l, r), p1v);
+            let best = _mm512_min_epu8(_mm512_min_epu8(prev, near), jump);
+            _mm512_adds_epu8(c, _mm512_sub_epi8(best, prev_min))
+        };
         let mut path = [pad; NV];
         let mut path_min = _mm512_setzero_si512();
         for i in 0..width {
@@ -132,7 +177,7 @@ mod x86 {
             // SAFETY: pixel `x < width` has `lanes` costs at `x * lanes`; the loads are masked to
             // them.
             let c: [__m512i; NV] = std::array::from_fn(|v| unsafe {
-                _mm512_mask_loadu_epi8(pad, load_mask[v], cost.as_ptr().add(x * lanes + 64 * v).cast())
+                _mm512_mask_loadu_epi8(pad, lane_mask[v], cost.as_ptr().add(x * lanes + 64 * v).cast())
             });
             if i == 0 {
                 // Entering the row: the path cost is the matching cost.
@@ -143,11 +188,8 @@ mod x86 {
                 for v in 0..NV {
                     let lower = if v == 0 { pad } else { prev[v - 1] };
                     let upper = if v + 1 == NV { pad } else { prev[v + 1] };
-                    let l = _mm512_permutex2var_epi8(lower, below, prev[v]);
-                    let r = _mm512_permutex2var_epi8(prev[v], above, upper);
-                    let near = _mm512_adds_epu8(_mm512_min_epu8(l, r), p1v);
-                    let best = _mm512_min_epu8(_mm512_min_epu8(prev[v], near), jump);
-                    path[v] = _mm512_adds_epu8(c[v], _mm512_sub_epi8(best, path_min));
+                    let (l, r) = neighbours(lower, prev[v], upper);
+                    path[v] = step(c[v], prev[v], l, r, path_min, jump);
                 }
             }
             let mut m = path[0];
@@ -155,17 +197,75 @@ mod x86 {
                 m = _mm512_min_epu8(m, *p);
             }
             path_min = min_broadcast_epu8(m);
+            // The 16-bit sums, one register per 32 disparities.
+            let mut total: [[__m512i; 2]; NV] = std::array::from_fn(|v| {
+                [
+                    _mm512_cvtepu8_epi16(_mm512_castsi512_si256(path[v])),
+                    _mm512_cvtepu8_epi16(_mm512_extracti64x4_epi64::<1>(path[v])),
+                ]
+            });
+            for from in from_row.iter_mut() {
+                let f = x as isize + from.dx;
+                let out = from.out.as_mut_ptr().add(x * stride + 1);
+                let mut m = pad;
+                if from.prev.is_empty() || f < 0 || f >= width as isize {
+                    // The path enters the image here.
+                    for v in 0..NV {
+                        // SAFETY: masked to the `lanes` entries after pixel `x`'s pad.
+                        _mm512_mask_storeu_epi8(out.add(64 * v).cast(), lane_mask[v], c[v]);
+                        m = _mm512_min_epu8(m, c[v]);
+                        total[v][0] =
+                            _mm512_add_epi16(total[v][0], _mm512_cvtepu8_epi16(_mm512_castsi512_si256(c[v])));
+                        total[v][1] = _mm512_add_epi16(
+                            total[v][1],
+                            _mm512_cvtepu8_epi16(_mm512_extracti64x4_epi64::<1>(c[v])),
+                        );
+                    }
+                } else {
+                    let f = f as usize;
+                    let prev_min = from.prev_mins[f];
+                    let jump = _mm512_set1_epi8(prev_min.saturating_add(from.p2[x]) as i8);
+                    let prev_min = _mm512_set1_epi8(prev_min as i8);
+                    let src = from.prev.as_ptr().add(f * stride);
+                    for v in 0..NV {
+                        // SAFETY: lane j of register v reads entries `64v + j + {0, 1, 2}` of
+                        // pixel `f`'s `lanes + 2`; the masks keep `64v + j < lanes`.
+                        let at = |o: usize| unsafe {
+                            _mm512_mask_loadu_epi8(pad, lane_mask[v], src.add(64 * v + o).cast())
+                        };
+                        let o = step(c[v], at(1), at(0), at(2), prev_min, jump);
+                        _mm512_mask_storeu_epi8(out.add(64 * v).cast(), lane_mask[v], o);
+                        m = _mm512_min_epu8(m, o);
+                        total[v][0] =
+                            _mm512_add_epi16(total[v][0], _mm512_cvtepu8_epi16(_mm512_castsi512_si256(o)));
+                        total[v][1] = _mm512_add_epi16(
+                            total[v][1],
+                            _mm512_cvtepu8_epi16(_mm512_extracti64x4_epi64::<1>(o)),
+                        );
+                    }
+                }
+                from.out_mins[x] = _mm_cvtsi128_si32(_mm512_castsi512_si128(min_broadcast_epu8(m))) as u8;
+            }
             let s = sum.as_mut_ptr().add(x * nd);
+            if accumulate {
+                // The other pass stored these sums long ago: ask for the ones a few pixels ahead.
+                let ahead = if reverse { x.wrapping_sub(6) } else { x + 6 };
+                if ahead < width {
+                    let line = sum.as_ptr().add(ahead * nd).cast::<i8>();
+                    for b in (0..2 * nd).step_by(64) {
+                        _mm_prefetch::<_MM_HINT_T0>(line.add(b));
+                    }
+                }
+            }
             for q in 0..sum_blocks {
-                let v = path[q / 2];
-                let half =
-                    if q % 2 == 0 { _mm512_castsi512_si256(v) } else { _mm512_extracti64x4_epi64::<1>(v) };
                 let mask = sum_mask(q);
                 // SAFETY: masked to the `nd` sums of pixel `x`.
                 let dst = s.add(32 * q);
-                let total =
-                    _mm512_add_epi16(_mm512_cvtepu8_epi16(half), _mm512_maskz_loadu_epi16(mask, dst.cast()));
-                _mm512_mask_storeu_epi16(dst.cast(), mask, total);
+                let mut t = total[q / 2][q % 2];
+                if accumulate {
+                    t = _mm512_add_epi16(t, _mm512_maskz_loadu_epi16(mask, dst.cast()));
+                }
+                _mm512_mask_storeu_epi16(dst.cast(), mask, t);
             }
         }
     }
@@ -178,69 +278,141 @@ mod tests {
     use crate::simd::{supported_levels, PathIn};
     use proptest::prelude::*;
 
-    /// The readable reference of [`sweep_u8`]: the per-pixel scalar step along the row.
-    fn sweep_u8_scalar(
+    /// The readable reference of [`row_u8`]: the per-pixel scalar step along the row, returning
+    /// the paths' new costs and minima.
+    #[allow(clippy::too_many_arguments)]
+    fn row_u8_scalar<const K: usize>(
         cost: &[u8],
         lanes: usize,
         nd: usize,
         p1: u8,
         p2: &[u8],
+        from_row: &mut [FromRow<'_>; K],
         sum: &mut [u16],
         reverse: bool,
+        accumulate: bool,
     ) {
         let width = cost.len() / lanes;
-        let zero = vec![0u8; lanes + 2];
-        let (mut prev, mut cur) = (vec![PAD_U8; lanes + 2], vec![PAD_U8; lanes + 2]);
+        let stride = lanes + 2;
+        let zero = vec![0u8; stride];
+        let (mut prev, mut cur) = (vec![PAD_U8; stride], vec![PAD_U8; stride]);
         let mut prev_min = 0;
         for i in 0..width {
             let x = if reverse { width - 1 - i } else { i };
+            let c = &cost[x * lanes..(x + 1) * lanes];
+            let s = &mut sum[x * nd..(x + 1) * nd];
             let input = if i == 0 {
                 PathIn { prev: &zero[..], prev_min: 0, p2: 0 }
             } else {
                 PathIn { prev: &prev[..], prev_min, p2: p2[x] }
             };
-            let c = &cost[x * lanes..(x + 1) * lanes];
-            [prev_min] =
-                path_step_u8_scalar(c, p1, [input], [&mut cur[..]], &mut sum[x * nd..(x + 1) * nd], true);
+            [prev_min] = path_step_u8_scalar(c, p1, [input], [&mut cur[..]], s, accumulate);
             std::mem::swap(&mut prev, &mut cur);
+            for from in from_row.iter_mut() {
+                let f = x as isize + from.dx;
+                let input = if from.prev.is_empty() || f < 0 || f >= width as isize {
+                    PathIn { prev: &zero[..], prev_min: 0, p2: 0 }
+                } else {
+                    let f = f as usize;
+                    PathIn {
+                        prev: &from.prev[f * stride..(f + 1) * stride],
+                        prev_min: from.prev_mins[f],
+                        p2: from.p2[x],
+                    }
+                };
+                let out = &mut from.out[x * stride..(x + 1) * stride];
+                [from.out_mins[x]] = path_step_u8_scalar(c, p1, [input], [out], s, true);
+            }
+        }
+    }
+
+    fn xorshift(seed: u64) -> impl FnMut() -> u64 {
+        let mut s = seed | 1;
+        move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
         }
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(300))]
+        #![proptest_config(ProptestConfig::with_cases(200))]
 
         #[test]
-        fn register_sweep_matches_the_scalar_steps(
-            width in 1usize..60, nd in 1usize..=256, max_cost in 1u8..200, p1 in 1u8..30,
-            p2_extra in 1u8..60, reverse in any::<bool>(), seed in any::<u64>(),
+        fn register_rows_match_the_scalar_steps(
+            width in 1usize..50, nd in 1usize..=256, max_cost in 1u8..200, p1 in 1u8..30,
+            p2_extra in 1u8..60, reverse in any::<bool>(), accumulate in any::<bool>(), paths in 0usize..4,
+            first_row in any::<bool>(), seed in any::<u64>(),
         ) {
             let lanes = padded_lanes_u8(nd);
+            let stride = lanes + 2;
             // Within the 8-bit bound: cost + P2 <= 254.
             let max_p2 = (u16::from(p1) + u16::from(p2_extra)).min(254 - u16::from(max_cost)) as u8;
             prop_assume!(max_p2 > p1);
-            let mut s = seed | 1;
-            let mut next = move || {
-                s ^= s << 13;
-                s ^= s >> 7;
-                s ^= s << 17;
-                s
-            };
+            let mut next = xorshift(seed);
             let cost: Vec<u8> = (0..width * lanes)
                 .map(|i| if i % lanes < nd { (next() % (u64::from(max_cost) + 1)) as u8 } else { PAD_U8 })
                 .collect();
-            let p2: Vec<u8> = (0..width).map(|_| p1 + 1 + (next() % u64::from(max_p2 - p1)) as u8).collect();
+            let penalties = |next: &mut dyn FnMut() -> u64| -> Vec<u8> {
+                (0..width).map(|_| p1 + 1 + (next() % u64::from(max_p2 - p1)) as u8).collect()
+            };
+            let p2 = penalties(&mut next);
+            // Previous rows as the recurrence leaves them: path costs up to cost + P2, pads 255.
+            let prev: Vec<Vec<u8>> = (0..3)
+                .map(|_| {
+                    (0..width * stride)
+                        .map(|i| {
+                            let k = i % stride;
+                            if k == 0 || k > nd { PAD_U8 } else { (next() % (u64::from(max_cost) + u64::from(max_p2) + 1)) as u8 }
+                        })
+                        .collect()
+                })
+                .collect();
+            let mins: Vec<Vec<u8>> = prev.iter().map(|p| p.chunks(stride).map(|c| *c.iter().min().unwrap()).collect()).collect();
+            let from_p2: Vec<Vec<u8>> = (0..3).map(|_| penalties(&mut next)).collect();
             let start: Vec<u16> = (0..width * nd).map(|_| (next() % 600) as u16).collect();
-            let mut expected = start.clone();
-            sweep_u8_scalar(&cost, lanes, nd, p1, &p2, &mut expected, reverse);
+            let run = |level: Option<Level>| {
+                let mut outs = vec![vec![7u8; width * stride]; 3];
+                let mut out_mins = vec![vec![0u8; width]; 3];
+                let mut s = start.clone();
+                let mut o = outs.iter_mut();
+                let mut om = out_mins.iter_mut();
+                let mut from = |k: usize| FromRow {
+                    prev: if first_row { &[] } else { &prev[k][..] },
+                    prev_mins: if first_row { &[] } else { &mins[k][..] },
+                    dx: [0, -1, 1][k],
+                    p2: &from_p2[k],
+                    out: o.next().unwrap(),
+                    out_mins: om.next().unwrap(),
+                };
+                let ran = match (paths, level) {
+                    (0, None) => { row_u8_scalar::<0>(&cost, lanes, nd, p1, &p2, &mut [], &mut s, reverse, accumulate); true }
+                    (0, Some(l)) => row_u8::<0>(l, &cost, lanes, nd, p1, &p2, [], &mut s, reverse, accumulate),
+                    (1, None) => { row_u8_scalar(&cost, lanes, nd, p1, &p2, &mut [from(0)], &mut s, reverse, accumulate); true }
+                    (1, Some(l)) => row_u8(l, &cost, lanes, nd, p1, &p2, [from(0)], &mut s, reverse, accumulate),
+                    (_, None) => { row_u8_scalar(&cost, lanes, nd, p1, &p2, &mut [from(0), from(1), from(2)], &mut s, reverse, accumulate); true }
+                    (_, Some(l)) => row_u8(l, &cost, lanes, nd, p1, &p2, [from(0), from(1), from(2)], &mut s, reverse, accumulate),
+                };
+                (ran, s, outs, out_mins)
+            };
+            let (_, expected, expected_outs, expected_mins) = run(None);
             for level in supported_levels() {
-                let mut got = start.clone();
-                let ran = sweep_u8(level, &cost, lanes, nd, p1, &p2, &mut got, reverse);
-                #[cfg(target_arch = "x86_64")]
-                if level == Level::Avx512 && lanes <= MAX_REGISTER_LANES && std::arch::is_x86_feature_detected!("avx512vbmi") {
+                let (ran, got, outs, out_mins) = run(Some(level));
+                if row_u8_available(level, lanes) {
                     prop_assert!(ran, "the register kernel did not run");
                 }
                 if ran {
-                    prop_assert_eq!(&got, &expected, "{:?}", level);
+                    prop_assert_eq!(&got, &expected, "{:?} sums", level);
+                    let k = if paths == 0 { 0 } else if paths == 1 { 1 } else { 3 };
+                    for p in 0..k {
+                        for x in 0..width {
+                            // Only the disparity lanes are written (the pads keep what was there).
+                            let (a, b) = (&outs[p][x * stride + 1..x * stride + 1 + lanes], &expected_outs[p][x * stride + 1..x * stride + 1 + lanes]);
+                            prop_assert_eq!(a, b, "{:?} path {} pixel {}", level, p, x);
+                        }
+                        prop_assert_eq!(&out_mins[p], &expected_mins[p], "{:?} path {} minima", level, p);
+                    }
                 } else {
                     prop_assert_eq!(&got, &start);
                 }
