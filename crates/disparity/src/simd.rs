@@ -793,8 +793,8 @@ mod x86 {
 
     /// AVX-512 VPOPCNTQ + VBMI [`super::cost_row_u8`]: [`cost_row_avx512`] with 64 disparities
     /// per step and bytes throughout. Eight loads of 8 right census strings, eight popcounts
-    /// packed into the eight bytes of each 64-bit lane by shifts, one byte permutation (VBMI) back
-    /// to disparity order; the AD term stays in bytes (`min(weight · BT, cap)` is a 128-entry
+    /// merged pairwise into disparity order by four two-register byte permutations (VBMI; fewer
+    /// instructions than packing by shifts and permuting once) and three byte blends; the AD term stays in bytes (`min(weight · BT, cap)` is a 128-entry
     /// table lookup, one two-register byte permutation, since the cap is at most 127); then the
     /// worst cost and padding by masked moves and stores that never split a cache line.
     ///
@@ -815,11 +815,13 @@ mod x86 {
         let lanes = padded_lanes_u8(nd);
         let pad = _mm512_set1_epi8(PAD_U8 as i8);
         let worst = _mm512_set1_epi8(worst as i8);
-        // Byte 8i + j of the packed vector is load j's lane i: disparity k + 8j + 7 - i.
+        // Load j's lane i (byte 8i of its popcounts) is disparity k + 8j + 7 - i; byte m of a
+        // pair of loads (2a, 2a + 1) is disparity k + 16a + m % 16 for the m whose `m / 16 == a`,
+        // from the first (index bit 6 clear) or second load of the pair by bit 3 of m.
         let unpack = {
             let mut idx = [0u8; 64];
             for (m, v) in idx.iter_mut().enumerate() {
-                *v = (8 * (7 - m % 8) + m / 8) as u8;
+                *v = (8 * (7 - m % 8) + 64 * ((m / 8) % 2)) as u8;
             }
             _mm512_loadu_si512(idx.as_ptr().cast())
         };
@@ -855,15 +857,15 @@ mod x86 {
             while k < lanes {
                 // The last block of an odd multiple of 32 lanes needs only its first four loads.
                 let half = k + 64 > lanes;
+                // Bit t: whether address `low + t` is inside the row, `low` the block's lowest.
+                let low = first - k as i64 - 63;
+                let inside_all = if loads_inside { !0 } else { lanes_between(-low, width as i64 - low, 64) };
                 let count = |j: usize| {
                     // Disparities k + 8j ..= k + 8j + 7 read right[first - k - 8j - 7 ..=
-                    // first - k - 8j]; lanes whose address is outside the row are not loaded.
-                    let lowest = first - (k + 8 * j) as i64 - 7;
-                    let inside = if loads_inside {
-                        !0
-                    } else {
-                        lanes_between(-lowest, width as i64 - lowest, 8) as __mmask8
-                    };
+                    // first - k - 8j] (bits 8 (7 - j).. of `inside_all`); lanes whose address is
+                    // outside the row are not loaded.
+                    let lowest = low + 8 * (7 - j as i64);
+                    let inside = (inside_all >> (8 * (7 - j))) as __mmask8;
                     // SAFETY: the masked load touches only lanes whose address is inside `right`;
                     // the pointer is formed with wrapping arithmetic.
                     let r = _mm512_maskz_loadu_epi64(
@@ -872,26 +874,16 @@ mod x86 {
                     );
                     _mm512_popcnt_epi64(_mm512_xor_si512(l, r))
                 };
-                let mut packed = _mm512_or_si512(
-                    _mm512_or_si512(count(0), _mm512_slli_epi64::<8>(count(1))),
-                    _mm512_or_si512(_mm512_slli_epi64::<16>(count(2)), _mm512_slli_epi64::<24>(count(3))),
-                );
-                if !half {
-                    packed = _mm512_or_si512(
-                        packed,
-                        _mm512_or_si512(
-                            _mm512_or_si512(
-                                _mm512_slli_epi64::<32>(count(4)),
-                                _mm512_slli_epi64::<40>(count(5)),
-                            ),
-                            _mm512_or_si512(
-                                _mm512_slli_epi64::<48>(count(6)),
-                                _mm512_slli_epi64::<56>(count(7)),
-                            ),
-                        ),
-                    );
-                }
-                let mut cost = _mm512_permutexvar_epi8(unpack, packed);
+                // Loads 2a and 2a + 1 give disparities k + 16a.. (bytes 16a..16a + 16 of `pair`);
+                // the four pairs' ranges are then put together by byte blends.
+                let pair = |a: usize| _mm512_permutex2var_epi8(count(2 * a), unpack, count(2 * a + 1));
+                let low_half = _mm512_mask_blend_epi8(0xffff_0000_ffff_0000, pair(0), pair(1));
+                let mut cost = if half {
+                    low_half
+                } else {
+                    let high_half = _mm512_mask_blend_epi8(0xffff_0000_ffff_0000, pair(2), pair(3));
+                    _mm512_mask_blend_epi8(0xffff_ffff_0000_0000, low_half, high_half)
+                };
                 let block: u64 = if half { u64::from(u32::MAX) } else { u64::MAX };
                 if let (Some(ad), Some((lv, llo, lhi))) = (&ad, bt_left) {
                     // Disparity k reads the reversed right BT rows at `i + k`; the pads of
