@@ -26,7 +26,7 @@
 
 use std::sync::Mutex;
 
-use crate::cost::{AdRows, BtRow};
+use crate::cost::{AdRows, AlignedRow, BtRow};
 use crate::path_u8::{self, padded_lanes_u8, PAD_U8};
 use crate::simd::{self, padded_lanes, Level, PathIn, PAD};
 use crate::sweep::FromRow;
@@ -82,7 +82,16 @@ trait PathCost: Copy + Default + Send + Sync + 'static {
     fn lanes(nd: usize) -> usize;
     /// A value known to fit (a penalty or a path minimum).
     fn narrow(v: u16) -> Self;
-    /// This pass's cost row: the `u16` row itself, or its 8-bit copy made in `narrow`.
+    /// Makes row `y`'s matching costs: [`simd::cost_row`] into `wide` for `u16`,
+    /// [`simd::cost_row_u8`] straight into `narrow` for `u8` (no `u16` row in between).
+    fn make_costs(
+        inputs: &Inputs<'_>,
+        y: usize,
+        ad: Option<AdRows<'_>>,
+        wide: &mut [u16],
+        narrow: &mut [Self],
+    );
+    /// This pass's cost row made by [`PathCost::make_costs`]: `wide` for `u16`, `narrow` for `u8`.
     fn costs<'a>(level: Level, wide: &'a [u16], nd: usize, narrow: &'a mut [Self]) -> &'a [Self];
     /// [`simd::path_step`] in this type.
     fn step<const N: usize>(
@@ -120,6 +129,12 @@ impl PathCost for u16 {
     }
     fn narrow(v: u16) -> u16 {
         v
+    }
+    #[inline(always)]
+    fn make_costs(inputs: &Inputs<'_>, y: usize, ad: Option<AdRows<'_>>, wide: &mut [u16], _: &mut [u16]) {
+        let (census_left, census_right) = (inputs.census_left.row(y), inputs.census_right.row(y));
+        let (min, nd) = (inputs.range.min, inputs.range.count());
+        simd::cost_row(simd::features(), census_left, census_right, min, nd, inputs.worst, ad, wide);
     }
     fn costs<'a>(_: Level, wide: &'a [u16], _: usize, _: &'a mut [u16]) -> &'a [u16] {
         wide
@@ -166,9 +181,12 @@ impl PathCost for u8 {
         v as u8
     }
     #[inline(always)]
-    fn costs<'a>(level: Level, wide: &'a [u16], nd: usize, narrow: &'a mut [u8]) -> &'a [u8] {
-        let width = narrow.len() / padded_lanes_u8(nd);
-        path_u8::narrow_row(level, wide, wide.len() / width.max(1), nd, narrow, padded_lanes_u8(nd));
+    fn make_costs(inputs: &Inputs<'_>, y: usize, ad: Option<AdRows<'_>>, _: &mut [u16], narrow: &mut [u8]) {
+        let (census_left, census_right) = (inputs.census_left.row(y), inputs.census_right.row(y));
+        let (min, nd) = (inputs.range.min, inputs.range.count());
+        simd::cost_row_u8(simd::features(), census_left, census_right, min, nd, inputs.worst, ad, narrow);
+    }
+    fn costs<'a>(_: Level, _: &'a [u16], _: usize, narrow: &'a mut [u8]) -> &'a [u8] {
         narrow
     }
     #[inline(always)]
@@ -397,9 +415,10 @@ struct PassState<T> {
     pass: Pass,
     /// The previous row of this pass, or `None` when the next row starts the paths.
     prev_y: Option<usize>,
+    /// The `u16` cost row (empty for `u8`, which uses `cost_narrow`).
     cost: Vec<u16>,
-    /// The cost row in `T` (empty for `u16`, which uses `cost`).
-    cost_narrow: Vec<T>,
+    /// The cost row in `T`, 64-byte aligned (empty for `u16`, which uses `cost`).
+    cost_narrow: AlignedRow<T>,
     vertical: [RowPaths<T>; 2],
     diag_a: [RowPaths<T>; 2],
     diag_b: [RowPaths<T>; 2],
@@ -421,13 +440,14 @@ impl<T: PathCost> PassState<T> {
         let lanes = T::lanes(nd);
         let stride = lanes + 2;
         let diagonal_width = if inputs.paths == PathCount::Eight { width } else { 0 };
-        // The `u16` passes use the cost row itself.
-        let narrow = if std::mem::size_of::<T>() == 2 { 0 } else { width * lanes };
+        // Each pass has one cost row: the `u16` passes `cost`, the `u8` passes `cost_narrow`.
+        let (wide, narrow) =
+            if std::mem::size_of::<T>() == 2 { (width * lanes, 0) } else { (0, width * lanes) };
         PassState {
             pass,
             prev_y: None,
-            cost: vec![0; width * padded_lanes(nd)],
-            cost_narrow: vec![T::default(); narrow],
+            cost: vec![0; wide],
+            cost_narrow: AlignedRow::new(narrow),
             vertical: RowPaths::pair(width, stride),
             diag_a: RowPaths::pair(diagonal_width, stride),
             diag_b: RowPaths::pair(diagonal_width, stride),
@@ -635,16 +655,7 @@ fn step_row<T: PathCost>(
         state.bt_right.fill(right.row(y), true);
         AdRows { left: &state.bt_left, right: &state.bt_right, weight, cap }
     });
-    simd::cost_row(
-        simd::features(),
-        inputs.census_left.row(y),
-        inputs.census_right.row(y),
-        inputs.range.min,
-        nd,
-        inputs.worst,
-        ad,
-        &mut state.cost,
-    );
+    T::make_costs(inputs, y, ad, &mut state.cost, &mut state.cost_narrow);
     let store = !sum.is_empty();
     let PassState { cost, cost_narrow, vertical, diag_a, diag_b, horizontal, zero, p2_rows, .. } = state;
     let cost = T::costs(level, cost, nd, cost_narrow);

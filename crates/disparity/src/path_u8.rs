@@ -37,7 +37,7 @@ pub(crate) type PathInU8<'a> = PathIn<'a, u8>;
 
 /// The 8-bit costs of one pixel: `narrow[k] = wide[k]` for the `nd` disparities, [`PAD_U8`] for
 /// the padding lanes (`narrow.len()` is a multiple of [`LANES_U8`]). The costs must fit in `u8`.
-#[inline(always)]
+#[cfg(test)]
 pub(crate) fn narrow_costs(wide: &[u16], nd: usize, narrow: &mut [u8]) {
     for (k, n) in narrow.iter_mut().enumerate() {
         *n = if k < nd { wide[k] as u8 } else { PAD_U8 };
@@ -224,64 +224,17 @@ mod x86 {
         }
         result
     }
-
-    /// AVX-512BW version of [`super::narrow_costs`] for a whole row: pixel `x`'s `nd` costs at
-    /// `wide[x * wide_lanes..]` to `narrow[x * narrow_lanes..]`, padding lanes [`super::PAD_U8`].
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512F/BW/VL; `wide.len() / wide_lanes == narrow.len() / narrow_lanes`,
-    /// `nd <= wide_lanes`, `narrow_lanes` a multiple of 32 and at least `nd`.
-    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
-    pub(super) unsafe fn narrow_row_avx512(
-        wide: &[u16],
-        wide_lanes: usize,
-        nd: usize,
-        narrow: &mut [u8],
-        narrow_lanes: usize,
-    ) {
-        let pad = _mm256_set1_epi8(-1);
-        for (w, n) in wide.chunks_exact(wide_lanes).zip(narrow.chunks_exact_mut(narrow_lanes)) {
-            let mut k = 0;
-            while k < narrow_lanes {
-                let real: __mmask32 = if k >= nd {
-                    0
-                } else if nd - k >= 32 {
-                    !0
-                } else {
-                    (1u32 << (nd - k)) - 1
-                };
-                // SAFETY: the load is masked to entries `k..nd` of this pixel's `wide_lanes >= nd`
-                // and the store covers `k..k + 32 <= narrow_lanes`.
-                let v = _mm512_maskz_loadu_epi16(real, w.as_ptr().add(k).cast());
-                let v = _mm256_mask_mov_epi8(pad, real, _mm512_cvtepi16_epi8(v));
-                _mm256_storeu_si256(n.as_mut_ptr().add(k).cast(), v);
-                k += 32;
-            }
-        }
-    }
 }
 
 /// [`narrow_costs`] for a whole row (`wide` with `wide_lanes` entries per pixel, `narrow` with
-/// `narrow_lanes`).
-pub(crate) fn narrow_row(
-    level: Level,
-    wide: &[u16],
-    wide_lanes: usize,
-    nd: usize,
-    narrow: &mut [u8],
-    narrow_lanes: usize,
-) {
+/// `narrow_lanes`): the reference of [`crate::simd::cost_row_u8`], which makes the 8-bit row
+/// directly.
+#[cfg(test)]
+pub(crate) fn narrow_row(wide: &[u16], wide_lanes: usize, nd: usize, narrow: &mut [u8], narrow_lanes: usize) {
     assert!(nd <= wide_lanes && nd <= narrow_lanes && narrow_lanes.is_multiple_of(LANES_U8));
     assert_eq!(wide.len() / wide_lanes, narrow.len() / narrow_lanes);
-    match level {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: AVX-512 was detected; the lengths were checked above.
-        Level::Avx512 => unsafe { x86::narrow_row_avx512(wide, wide_lanes, nd, narrow, narrow_lanes) },
-        _ => {
-            for (w, n) in wide.chunks_exact(wide_lanes).zip(narrow.chunks_exact_mut(narrow_lanes)) {
-                narrow_costs(w, nd, n);
-            }
-        }
+    for (w, n) in wide.chunks_exact(wide_lanes).zip(narrow.chunks_exact_mut(narrow_lanes)) {
+        narrow_costs(w, nd, n);
     }
 }
 
@@ -364,28 +317,6 @@ mod tests {
                     prop_assert_eq!(&real8[..], &out16[1..=nd], "{:?} path costs", level);
                     prop_assert!(out8[nd + 1..=lanes8].iter().all(|&v| v == PAD_U8), "{:?} padding", level);
                 }
-            }
-        }
-
-        #[test]
-        fn narrowing_kernels_match_the_scalar_reference(width in 1usize..20, nd in 1usize..150, seed in any::<u64>()) {
-            let wide_lanes = crate::simd::padded_lanes(nd);
-            let narrow_lanes = padded_lanes_u8(nd);
-            let mut state = seed | 1;
-            let wide: Vec<u16> = (0..width * wide_lanes)
-                .map(|_| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    (state % 255) as u16
-                })
-                .collect();
-            let mut expected = vec![0u8; width * narrow_lanes];
-            narrow_row(Level::Scalar, &wide, wide_lanes, nd, &mut expected, narrow_lanes);
-            for level in supported_levels() {
-                let mut got = vec![7u8; width * narrow_lanes];
-                narrow_row(level, &wide, wide_lanes, nd, &mut got, narrow_lanes);
-                prop_assert_eq!(&got, &expected, "{:?}", level);
             }
         }
     }

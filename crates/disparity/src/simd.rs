@@ -13,6 +13,8 @@
 use std::sync::OnceLock;
 
 use crate::cost::{bt, AdRows, BtRow, BT_PAD};
+use crate::path_u8::{padded_lanes_u8, PAD_U8};
+use crate::MAX_AD_CAP;
 
 /// Disparities are padded to whole blocks of this many `u16` lanes (one AVX2 register, half an
 /// AVX-512 one: the AVX-512 kernels finish an odd block with a 256-bit step).
@@ -253,6 +255,82 @@ pub(crate) fn cost_row_scalar(
     }
 }
 
+/// [`cost_row`] straight to 8 bits, for the 8-bit passes: `out[x][k]` (`out.len() ==
+/// width * padded_lanes_u8(nd)`) is the same cost for `k < nd` and [`PAD_U8`] for the padding
+/// lanes, i.e. what [`crate::path_u8::narrow_row`] makes of [`cost_row`]'s output, without the
+/// `u16` row in between. Every cost fits: census ≤ 64, the AD cap ≤ [`MAX_AD_CAP`] and
+/// `worst <= 255` (asserted).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn cost_row_u8(
+    features: Features,
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u8],
+) {
+    assert_eq!(left.len(), right.len());
+    assert!(nd > 0 && out.len() == left.len() * padded_lanes_u8(nd));
+    assert!(worst <= 255);
+    if let Some(ad) = ad {
+        assert!(ad.cap <= u16::from(MAX_AD_CAP));
+        for row in [ad.left, ad.right] {
+            assert!(row.value.len() == left.len() + 2 * BT_PAD);
+            assert!(row.lo.len() == row.value.len() && row.hi.len() == row.value.len());
+        }
+    }
+    #[cfg(target_arch = "x86_64")]
+    if features.vpopcnt && is_x86_feature_detected!("avx512vbmi") {
+        // SAFETY: `vpopcnt` is only set when the CPU has AVX-512F/BW/VL and VPOPCNTDQ, and VBMI
+        // was just checked (a cached test); lengths and value bounds were checked above.
+        unsafe { x86::cost_row_u8_avx512(left, right, min_disparity, nd, worst, ad, out) };
+        return;
+    }
+    #[cfg(target_arch = "x86_64")]
+    if features.level >= Level::Avx2 {
+        // SAFETY: AVX2 (which implies POPCNT on every CPU that has it) was detected; lengths were
+        // checked above.
+        unsafe { x86::cost_row_u8_avx2(left, right, min_disparity, nd, worst, ad, out) };
+        return;
+    }
+    cost_row_u8_scalar(left, right, min_disparity, nd, worst, ad, out)
+}
+
+/// The readable reference of [`cost_row_u8`] (the loop of [`cost_row_scalar`] in 8 bits).
+#[inline(always)]
+pub(crate) fn cost_row_u8_scalar(
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u8],
+) {
+    let width = left.len();
+    let lanes = padded_lanes_u8(nd);
+    for (x, costs) in out.chunks_exact_mut(lanes).enumerate() {
+        let l = left[x];
+        let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+        costs[..lo].fill(worst as u8);
+        for (k, c) in costs[lo..hi].iter_mut().enumerate() {
+            let xr = (first - (lo + k) as i64) as usize;
+            let mut cost = (l ^ right[xr]).count_ones() as u16;
+            if let Some(ad) = ad {
+                let il = BT_PAD + x;
+                let ir = BT_PAD + width - 1 - xr;
+                let at = |r: &BtRow, i: usize| (r.value[i], r.lo[i], r.hi[i]);
+                cost += (u16::from(bt(at(ad.left, il), at(ad.right, ir))) * ad.weight).min(ad.cap);
+            }
+            *c = cost as u8;
+        }
+        costs[hi..nd].fill(worst as u8);
+        costs[nd..].fill(PAD_U8);
+    }
+}
+
 /// The smallest value of a non-empty `values` and the index of its first occurrence.
 #[inline(always)]
 pub(crate) fn argmin(level: Level, values: &[u16]) -> (u16, usize) {
@@ -314,7 +392,10 @@ pub(crate) fn keep_smaller_scalar(costs: &[u16], first_index: u16, best: &mut [u
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::{cost_row_scalar, feasible, padded_lanes, AdRows, PathIn, BT_PAD, JUNK_COST};
+    use super::{
+        cost_row_scalar, cost_row_u8_scalar, feasible, padded_lanes, padded_lanes_u8, AdRows, PathIn, BT_PAD,
+        JUNK_COST, PAD_U8,
+    };
 
     /// Minimum of the 32 unsigned 16-bit lanes.
     #[inline]
@@ -710,6 +791,163 @@ mod x86 {
         }
     }
 
+    /// AVX-512 VPOPCNTQ + VBMI [`super::cost_row_u8`]: [`cost_row_avx512`] with 64 disparities
+    /// per step and bytes throughout. Eight loads of 8 right census strings, eight popcounts
+    /// merged pairwise into disparity order by four two-register byte permutations (VBMI; fewer
+    /// instructions than packing by shifts and permuting once) and three byte blends; the AD term stays in bytes (`min(weight · BT, cap)` is a 128-entry
+    /// table lookup, one two-register byte permutation, since the cap is at most 127); then the
+    /// worst cost and padding by masked moves and stores that never split a cache line.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F/BW/VL, VPOPCNTDQ and VBMI; lengths and bounds as checked by
+    /// [`super::cost_row_u8`].
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vpopcntdq,avx512vbmi")]
+    pub(super) unsafe fn cost_row_u8_avx512(
+        left: &[u64],
+        right: &[u64],
+        min_disparity: i32,
+        nd: usize,
+        worst: u16,
+        ad: Option<AdRows<'_>>,
+        out: &mut [u8],
+    ) {
+        let width = left.len();
+        let lanes = padded_lanes_u8(nd);
+        let pad = _mm512_set1_epi8(PAD_U8 as i8);
+        let worst = _mm512_set1_epi8(worst as i8);
+        // Load j's lane i (byte 8i of its popcounts) is disparity k + 8j + 7 - i; byte m of a
+        // pair of loads (2a, 2a + 1) is disparity k + 16a + m % 16 for the m whose `m / 16 == a`,
+        // from the first (index bit 6 clear) or second load of the pair by bit 3 of m.
+        let unpack = {
+            let mut idx = [0u8; 64];
+            for (m, v) in idx.iter_mut().enumerate() {
+                *v = (8 * (7 - m % 8) + 64 * ((m / 8) % 2)) as u8;
+            }
+            _mm512_loadu_si512(idx.as_ptr().cast())
+        };
+        // `min(weight · b, cap)` for b = 0..128; BT values are clamped to 127, where the term is
+        // already at the cap (or 0 for weight 0) because the cap is at most 127.
+        let (term_lo, term_hi) = match &ad {
+            Some(ad) => {
+                let table: [u8; 128] =
+                    std::array::from_fn(|b| (u32::from(ad.weight) * b as u32).min(u32::from(ad.cap)) as u8);
+                (_mm512_loadu_si512(table.as_ptr().cast()), _mm512_loadu_si512(table[64..].as_ptr().cast()))
+            }
+            None => (_mm512_setzero_si512(), _mm512_setzero_si512()),
+        };
+        let top = _mm512_set1_epi8(127);
+        let bt_len = (width + 2 * BT_PAD) as i64;
+        for (x, &census) in left.iter().enumerate() {
+            let l = _mm512_set1_epi64(census as i64);
+            // Disparity index k has its right pixel at first - k: inside the row for k in lo..hi.
+            let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+            let interior = lo == 0 && hi == nd;
+            // Every census load of the pixel (padding lanes included) inside the row.
+            let loads_inside = first + 1 >= lanes as i64 && first < width as i64;
+            let dst = out.as_mut_ptr().add(x * lanes);
+            let bt_left = ad.as_ref().map(|ad| {
+                let il = BT_PAD + x;
+                (
+                    _mm512_set1_epi8(ad.left.value[il] as i8),
+                    _mm512_set1_epi8(ad.left.lo[il] as i8),
+                    _mm512_set1_epi8(ad.left.hi[il] as i8),
+                )
+            });
+            let mut k = 0;
+            while k < lanes {
+                // The last block of an odd multiple of 32 lanes needs only its first four loads.
+                let half = k + 64 > lanes;
+                // Bit t: whether address `low + t` is inside the row, `low` the block's lowest.
+                let low = first - k as i64 - 63;
+                let inside_all = if loads_inside { !0 } else { lanes_between(-low, width as i64 - low, 64) };
+                let count = |j: usize| {
+                    // Disparities k + 8j ..= k + 8j + 7 read right[first - k - 8j - 7 ..=
+                    // first - k - 8j] (bits 8 (7 - j).. of `inside_all`); lanes whose address is
+                    // outside the row are not loaded.
+                    let lowest = low + 8 * (7 - j as i64);
+                    let inside = (inside_all >> (8 * (7 - j))) as __mmask8;
+                    // SAFETY: the masked load touches only lanes whose address is inside `right`;
+                    // the pointer is formed with wrapping arithmetic.
+                    let r = _mm512_maskz_loadu_epi64(
+                        inside,
+                        right.as_ptr().wrapping_offset(lowest as isize).cast(),
+                    );
+                    _mm512_popcnt_epi64(_mm512_xor_si512(l, r))
+                };
+                // Loads 2a and 2a + 1 give disparities k + 16a.. (bytes 16a..16a + 16 of `pair`);
+                // the four pairs' ranges are then put together by byte blends.
+                let pair = |a: usize| _mm512_permutex2var_epi8(count(2 * a), unpack, count(2 * a + 1));
+                let low_half = _mm512_mask_blend_epi8(0xffff_0000_ffff_0000, pair(0), pair(1));
+                let mut cost = if half {
+                    low_half
+                } else {
+                    let high_half = _mm512_mask_blend_epi8(0xffff_0000_ffff_0000, pair(2), pair(3));
+                    _mm512_mask_blend_epi8(0xffff_ffff_0000_0000, low_half, high_half)
+                };
+                let block: u64 = if half { u64::from(u32::MAX) } else { u64::MAX };
+                if let (Some(ad), Some((lv, llo, lhi))) = (&ad, bt_left) {
+                    // Disparity k reads the reversed right BT rows at `i + k`; the pads of
+                    // `BT_PAD` entries cover the lanes of interior pixels past `nd` (at most 31
+                    // past it: `block` leaves out the upper half of a half block), masks the rest.
+                    let i = BT_PAD as i64 + width as i64 - 1 - first + k as i64;
+                    let inside = if interior { block } else { lanes_between(-i, bt_len - i, 64) & block };
+                    let load = |row: &[u8]| {
+                        // SAFETY: masked to the lanes inside `row` (`bt_len` entries); for interior
+                        // pixels the lanes read end at `i + lanes - k <= BT_PAD + width + 31`,
+                        // inside the padded row.
+                        _mm512_maskz_loadu_epi8(inside, row.as_ptr().wrapping_offset(i as isize).cast())
+                    };
+                    let (rv, rlo, rhi) = (load(&ad.right.value), load(&ad.right.lo), load(&ad.right.hi));
+                    let d_lr = _mm512_max_epu8(_mm512_subs_epu8(lv, rhi), _mm512_subs_epu8(rlo, lv));
+                    let d_rl = _mm512_max_epu8(_mm512_subs_epu8(rv, lhi), _mm512_subs_epu8(llo, rv));
+                    let bt = _mm512_min_epu8(_mm512_min_epu8(d_lr, d_rl), top);
+                    cost = _mm512_add_epi8(cost, _mm512_permutex2var_epi8(term_lo, bt, term_hi));
+                }
+                let cost = if interior && k + 64 <= nd {
+                    cost
+                } else if interior {
+                    _mm512_mask_mov_epi8(pad, lanes_between(0, nd as i64 - k as i64, 64), cost)
+                } else {
+                    let feasible = lanes_between(lo as i64 - k as i64, hi as i64 - k as i64, 64);
+                    let real = lanes_between(0, nd as i64 - k as i64, 64);
+                    _mm512_mask_mov_epi8(pad, real, _mm512_mask_mov_epi8(worst, feasible, cost))
+                };
+                // SAFETY: `k + 32 <= lanes` (and `k + 64 <= lanes` unless `half`), inside this
+                // pixel's entries.
+                let at = dst.add(k);
+                if half {
+                    _mm256_storeu_si256(at.cast(), _mm512_castsi512_si256(cost));
+                } else if (at as usize).is_multiple_of(64) {
+                    _mm512_storeu_si512(at.cast(), cost);
+                } else {
+                    // Two 256-bit stores, at multiples of 32 bytes in an aligned row: one 512-bit
+                    // store there would split a cache line.
+                    _mm256_storeu_si256(at.cast(), _mm512_castsi512_si256(cost));
+                    _mm256_storeu_si256(at.add(32).cast(), _mm512_extracti64x4_epi64::<1>(cost));
+                }
+                k += 64;
+            }
+        }
+    }
+
+    /// [`super::cost_row_u8`] for machines without the AVX-512 kernel: the scalar reference
+    /// compiled with POPCNT.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2 and POPCNT.
+    #[target_feature(enable = "avx2,popcnt")]
+    pub(super) unsafe fn cost_row_u8_avx2(
+        left: &[u64],
+        right: &[u64],
+        min_disparity: i32,
+        nd: usize,
+        worst: u16,
+        ad: Option<AdRows<'_>>,
+        out: &mut [u8],
+    ) {
+        cost_row_u8_scalar(left, right, min_disparity, nd, worst, ad, out)
+    }
+
     /// Lane masks for [`add_ad_avx2`]: 16 entries read from `MASKS[16 - n..]` are set from lane
     /// `n` on; from `MASKS[32 - n..]` below lane `n`.
     static MASKS: [u16; 48] = {
@@ -896,6 +1134,64 @@ mod tests {
                 let mut out = vec![1u16; width * lanes];
                 cost_row(f, &left, &right, min, nd, worst, ad, &mut out);
                 prop_assert_eq!(&out, &reference, "{:?}", f);
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(400))]
+
+        /// The 8-bit cost row equals the narrowed `u16` row (costs for `k < nd`, [`PAD_U8`]
+        /// after) on every level, for widths, disparity counts (multiples of 32 or not, up to
+        /// 256) and offsets (negative, past the width) that exercise interior and border pixels,
+        /// with and without the AD term.
+        #[test]
+        fn cost_row_u8_kernels_match_the_narrowed_scalar_reference(
+            width in 1usize..200, nd in prop_oneof![1usize..=64, 1usize..=256],
+            min in prop_oneof![-8i32..8, -300i32..300], seed in any::<u64>(), worst in 9u16..=64,
+            ad in any::<Option<(u8, u8)>>(), step in 1u64..20000,
+        ) {
+            let mut s = seed | 1;
+            let mut next = || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s };
+            let left: Vec<u64> = (0..width).map(|_| next()).collect();
+            let right: Vec<u64> = (0..width).map(|_| next()).collect();
+            let mut walk = |width: usize| {
+                let mut v = next() % 65536;
+                let mut row = Vec::with_capacity(width);
+                for _ in 0..width {
+                    let r = next();
+                    v = (v + r % step + 65536 - step / 2) % 65536;
+                    row.push(v as u16);
+                }
+                row
+            };
+            let grey_left = walk(width);
+            let grey_right = walk(width);
+            let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());
+            bt_left.fill(&grey_left, false);
+            bt_right.fill(&grey_right, true);
+            let ad = ad.map(|(weight, cap)| AdRows {
+                left: &bt_left, right: &bt_right, weight: u16::from(weight % 17), cap: u16::from(cap % (MAX_AD_CAP + 1)),
+            });
+            let worst = worst + ad.map_or(0, |a| a.cap);
+            let (lanes, lanes8) = (padded_lanes(nd), padded_lanes_u8(nd));
+            let mut wide = vec![0u16; width * lanes];
+            cost_row_scalar(&left, &right, min, nd, worst, ad, &mut wide);
+            let mut reference = vec![0u8; width * lanes8];
+            crate::path_u8::narrow_row(&wide, lanes, nd, &mut reference, lanes8);
+            let mut out = vec![1u8; width * lanes8];
+            cost_row_u8_scalar(&left, &right, min, nd, worst, ad, &mut out);
+            prop_assert_eq!(&out, &reference, "scalar");
+            let top = features();
+            for level in supported_levels() {
+                let f = Features { level, vpopcnt: top.vpopcnt && level == Level::Avx512 };
+                // Also at an odd address: the kernel's stores must not depend on alignment.
+                for offset in [0, 1] {
+                    let mut buf = vec![1u8; width * lanes8 + offset];
+                    let out = &mut buf[offset..];
+                    cost_row_u8(f, &left, &right, min, nd, worst, ad, out);
+                    prop_assert_eq!(&out[..], &reference[..], "{:?} offset {}", f, offset);
+                }
             }
         }
     }
