@@ -97,15 +97,23 @@ pub(crate) struct WtaScratch {
     right_index: Vec<u16>,
     /// Left view: each pixel's winning disparity index (fused AVX-512 kernel).
     left_best: Vec<u16>,
+    /// The winner's cost and its two neighbours' (the winner's own where it has none), for the
+    /// subpixel fits done 16 pixels at a time after the row (fused AVX-512 kernel).
+    around: [Vec<u16>; 3],
 }
 
 impl WtaScratch {
     pub(crate) fn new(width: usize) -> Self {
-        WtaScratch { right_cost: vec![0; width], right_index: vec![0; width], left_best: vec![0; width] }
+        WtaScratch {
+            right_cost: vec![0; width],
+            right_index: vec![0; width],
+            left_best: vec![0; width],
+            around: std::array::from_fn(|_| vec![0; width]),
+        }
     }
 
     pub(crate) fn bytes(width: usize) -> usize {
-        width.saturating_mul(6)
+        width.saturating_mul(12)
     }
 }
 
@@ -245,9 +253,8 @@ fn select_row_generic(
 mod fused {
     use std::arch::x86_64::*;
 
-    use super::{
-        ambiguous, feasible_left, refined_offset, tagged_nan, PixelStatus, Selection, WtaScratch, NO_MATCH,
-    };
+    use super::{feasible_left, tagged_nan, PixelStatus, Selection, WtaScratch, NO_MATCH};
+    use crate::Subpixel;
 
     /// Registers of 32 lanes per window array: up to 8, i.e. 256 disparities.
     const MAX_VECTORS: usize = 8;
@@ -316,6 +323,7 @@ mod fused {
         let mut window_index = [ones; NV];
         let right_index = &mut scratch.right_index[..width];
         let left_best = &mut scratch.left_best[..width];
+        let around = &mut scratch.around;
         right_index.fill(NO_MATCH);
         let (top_vector, top_lane) = ((nd.max(1) - 1) / 32, (nd.max(1) - 1) % 32);
         let full: [__mmask32; NV] = std::array::from_fn(|j| lane_mask(0, nd, 32 * j));
@@ -368,13 +376,33 @@ mod fused {
                     break;
                 }
             }
+            // The uniqueness test of [`ambiguous`] on the registers: the cheapest feasible
+            // disparity more than one index away from the winner (none when every sum is
+            // `u16::MAX`, which no sum of path costs reaches).
+            let ambiguous = sel.uniqueness_ratio > 0 && {
+                let mut m = ones;
+                for j in 0..NV {
+                    let near_best = lane_mask(best.saturating_sub(1), best + 2, 32 * j);
+                    m = _mm512_mask_min_epu16(m, feasible[j] & !near_best, m, c[j]);
+                }
+                let second = hmin_epu16(m);
+                second != u16::MAX
+                    && u64::from(best_cost) * u64::from(100 + sel.uniqueness_ratio) > u64::from(second) * 100
+            };
             let c = &costs[x * nd..(x + 1) * nd];
-            if ambiguous(c, ks.clone(), best, sel.uniqueness_ratio) {
+            if ambiguous {
                 out[x] = tagged_nan(PixelStatus::Ambiguous);
                 continue;
             }
             left_best[x] = best as u16;
-            out[x] = (min + best as i64) as f32 + refined_offset(c, ks, best, sel.subpixel);
+            let interior = best > ks.start && best + 1 < ks.end;
+            let at = c[best];
+            let (before, after) = if interior { (c[best - 1], c[best + 1]) } else { (at, at) };
+            (around[0][x], around[1][x], around[2][x]) = (before, at, after);
+            out[x] = (min + best as i64) as f32;
+        }
+        if sel.subpixel != Subpixel::None {
+            add_subpixel_offsets(sel.subpixel, around, &mut out[..width]);
         }
         if !lr {
             return;
@@ -402,6 +430,48 @@ mod fused {
             if kr == NO_MATCH || (kr as f32 - best as f32).abs() > max_diff {
                 *o = super::lr_failure(kr != NO_MATCH && usize::from(kr) > best);
             }
+        }
+    }
+
+    /// Adds [`super::subpixel_offset`] of each pixel's `around` costs to its integer disparity in
+    /// `out`, 16 pixels per instruction and with the same floating-point operations in the same
+    /// order (so the same roundings); NaN pixels (rejected) keep their tagged NaN. Pixels at the
+    /// end of their feasible range carry their own cost as both neighbours, whose fit is 0.
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
+    fn add_subpixel_offsets(method: Subpixel, around: &[Vec<u16>; 3], out: &mut [f32]) {
+        let width = out.len();
+        let (zero, half, two) = (_mm512_setzero_ps(), _mm512_set1_ps(0.5), _mm512_set1_ps(2.0));
+        let mut x = 0;
+        while x < width {
+            let n = (width - x).min(16);
+            let mask: __mmask16 = if n == 16 { !0 } else { (1u16 << n) - 1 };
+            // SAFETY: the loads and the store are masked to pixels `x..x + n` of `width`, which
+            // every `around` array and `out` hold.
+            let load = |v: &Vec<u16>| unsafe {
+                _mm512_cvtepi32_ps(_mm512_cvtepu16_epi32(_mm256_maskz_loadu_epi16(
+                    mask,
+                    v.as_ptr().add(x).cast(),
+                )))
+            };
+            let (before, best, after) = (load(&around[0]), load(&around[1]), load(&around[2]));
+            let offset = match method {
+                Subpixel::None => zero,
+                Subpixel::Parabola => {
+                    let curvature = _mm512_add_ps(_mm512_sub_ps(before, _mm512_mul_ps(two, best)), after);
+                    let fit = _mm512_div_ps(_mm512_sub_ps(before, after), _mm512_mul_ps(two, curvature));
+                    _mm512_maskz_mov_ps(_mm512_cmp_ps_mask::<_CMP_GT_OQ>(curvature, zero), fit)
+                }
+                Subpixel::Equiangular => {
+                    let slope = _mm512_max_ps(_mm512_sub_ps(before, best), _mm512_sub_ps(after, best));
+                    let fit = _mm512_div_ps(_mm512_sub_ps(before, after), _mm512_mul_ps(two, slope));
+                    _mm512_maskz_mov_ps(_mm512_cmp_ps_mask::<_CMP_GT_OQ>(slope, zero), fit)
+                }
+            };
+            let offset = _mm512_max_ps(_mm512_min_ps(offset, half), _mm512_sub_ps(zero, half));
+            let o = unsafe { _mm512_maskz_loadu_ps(mask, out.as_ptr().add(x)) };
+            let valid = _mm512_cmp_ps_mask::<_CMP_ORD_Q>(o, o) & mask;
+            unsafe { _mm512_mask_storeu_ps(out.as_mut_ptr().add(x), valid, _mm512_add_ps(o, offset)) };
+            x += 16;
         }
     }
 
