@@ -192,6 +192,18 @@ unsafe fn census_row_gfni(
     let n = window.width * window.height - 1;
     assert!(n <= 64 && padded.len() == window.height * pw && bits.len() == width);
     let centre = image.row(y);
+    // `offsets[i]`: where in `padded` the neighbour of census bit `i` of pixel 0 is. Window
+    // position `r` (row by row, centre skipped) is bit `n - 1 - r`.
+    let mut offsets = [0usize; 64];
+    let mut bit = n;
+    for dy in 0..window.height {
+        for dx in 0..window.width {
+            if (dy, dx) != (ry, rx) {
+                bit -= 1;
+                offsets[bit] = dy * pw + dx;
+            }
+        }
+    }
     // Rows `n..64` of the matrix stay zero.
     let mut matrix = BitRows([0; 128]);
     let mut x0 = 0;
@@ -205,22 +217,15 @@ unsafe fn census_row_gfni(
                 _mm512_loadu_si512(centre.as_ptr().add(x + 32).cast()),
             )
         };
-        // Window position `r` (row by row, centre skipped) is census bit `n - 1 - r`.
-        let mut bit = n;
-        for (dy, p) in padded.chunks_exact(pw).enumerate() {
-            for dx in 0..window.width {
-                if dx == rx && dy == ry {
-                    continue;
-                }
-                bit -= 1;
-                // SAFETY: `x + dx + 64 <= width + 2 * rx = pw`: inside this padded row.
-                let (lo, hi) = unsafe {
-                    let src = p.as_ptr().add(x + dx);
-                    (_mm512_loadu_si512(src.cast()), _mm512_loadu_si512(src.add(32).cast()))
-                };
-                matrix.0[2 * bit] = _mm512_cmplt_epu16_mask(lo, c_lo);
-                matrix.0[2 * bit + 1] = _mm512_cmplt_epu16_mask(hi, c_hi);
-            }
+        for (m, &o) in matrix.0.chunks_exact_mut(2).zip(&offsets[..n]) {
+            // SAFETY: `o = dy * pw + dx` with `dy < window.height` and `dx < window.width`, so
+            // `o + x + 64 <= dy * pw + (2 * rx + width) = (dy + 1) * pw <= padded.len()`.
+            let (lo, hi) = unsafe {
+                let src = padded.as_ptr().add(o + x);
+                (_mm512_loadu_si512(src.cast()), _mm512_loadu_si512(src.add(32).cast()))
+            };
+            m[0] = _mm512_cmplt_epu16_mask(lo, c_lo);
+            m[1] = _mm512_cmplt_epu16_mask(hi, c_hi);
         }
         // SAFETY: `matrix` is 512 bytes, aligned to 64.
         let rows: [__m512i; 8] =
