@@ -23,6 +23,9 @@ enum Kernel {
     Avx512,
     #[cfg(target_arch = "x86_64")]
     Gfni,
+    /// [`Kernel::Gfni`] on the high bytes, for 8-bit images (see [`is_byte_scaled`]).
+    #[cfg(target_arch = "x86_64")]
+    GfniBytes,
 }
 
 impl Kernel {
@@ -57,14 +60,32 @@ fn census_transform_with(image: &GrayImage, window: CensusWindow, out: &mut Imag
     if width == 0 || height == 0 {
         return;
     }
+    #[cfg(target_arch = "x86_64")]
+    let kernel = match kernel {
+        Kernel::Gfni if is_byte_scaled(image) => Kernel::GfniBytes,
+        k => k,
+    };
     let rows_per_task = height.div_ceil(16).max(1);
     out.as_mut_slice().par_chunks_mut(width * rows_per_task).enumerate().for_each(|(task, rows)| {
         // Each window row, extended by the border pixels, so the inner loops need no clamping.
-        let mut padded = vec![0u16; window.height * (width + window.width - 1)];
+        let len = window.height * (width + window.width - 1);
+        let mut padded = vec![0u16; len];
+        #[cfg(target_arch = "x86_64")]
+        let mut high_bytes = if kernel == Kernel::GfniBytes { vec![0u8; len] } else { Vec::new() };
+        #[cfg(not(target_arch = "x86_64"))]
+        let mut high_bytes = Vec::new();
         for (i, bits) in rows.chunks_mut(width).enumerate() {
-            census_row(kernel, image, window, task * rows_per_task + i, &mut padded, bits);
+            census_row(kernel, image, window, task * rows_per_task + i, &mut padded, &mut high_bytes, bits);
         }
     });
+}
+
+/// Whether every sample is a multiple of 257, as in 8-bit images scaled to 16 bits (`b · 257`
+/// has both bytes `b`): then the high bytes compare exactly as the samples do, and a 512-bit
+/// comparison covers 64 pixels instead of 32.
+#[cfg(target_arch = "x86_64")]
+fn is_byte_scaled(image: &GrayImage) -> bool {
+    image.as_slice().chunks(4096).all(|c| c.iter().fold(true, |ok, &v| ok & (v >> 8 == v & 0xff)))
 }
 
 fn census_row(
@@ -73,12 +94,21 @@ fn census_row(
     window: CensusWindow,
     y: usize,
     padded: &mut [u16],
+    #[allow(unused_variables)] high_bytes: &mut [u8],
     bits: &mut [u64],
 ) {
     match kernel {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `Kernel::Gfni` is only chosen when the CPU has AVX-512F/BW/VL/VBMI and GFNI.
         Kernel::Gfni => unsafe { census_row_gfni(image, window, y, padded, bits) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as above, and `high_bytes` is as long as `padded`.
+        Kernel::GfniBytes if image.width() >= 64 => unsafe {
+            census_row_gfni_bytes(image, window, y, high_bytes, bits)
+        },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as above.
+        Kernel::GfniBytes => unsafe { census_row_gfni(image, window, y, padded, bits) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `Kernel::Avx512` is only chosen at the AVX-512 level, detected on this CPU.
         Kernel::Avx512 => unsafe { census_row_avx512(image, window, y, padded, bits) },
@@ -93,7 +123,32 @@ fn census_row(
 /// each group of 8 rows is one aligned 512-bit load.
 #[cfg(target_arch = "x86_64")]
 #[repr(C, align(64))]
-struct BitRows([u32; 128]);
+struct BitRows([u64; 64]);
+
+#[cfg(target_arch = "x86_64")]
+impl BitRows {
+    /// The rows as 32-bit halves, low half first, for masks made of two 32-lane comparisons.
+    fn halves_mut(&mut self) -> &mut [u32; 128] {
+        // SAFETY: 64 `u64` are 128 `u32` (whose alignment is smaller); x86-64 is little-endian,
+        // so half `2i` is the low half of row `i`.
+        unsafe { &mut *self.0.as_mut_ptr().cast::<[u32; 128]>() }
+    }
+
+    /// Transposes the matrix (see [`transpose_64x64`]) into the 64 census values `out`.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi,gfni")]
+    fn store_transposed(&self, out: &mut [u64]) {
+        use std::arch::x86_64::*;
+        assert_eq!(out.len(), 64);
+        // SAFETY: the matrix is 512 bytes, aligned to 64.
+        let rows: [__m512i; 8] =
+            std::array::from_fn(|k| unsafe { _mm512_load_si512(self.0.as_ptr().add(8 * k).cast()) });
+        for (k, v) in transpose_64x64(rows).into_iter().enumerate() {
+            // SAFETY: `8k + 8 <= 64 = out.len()`.
+            unsafe { _mm512_storeu_si512(out.as_mut_ptr().add(8 * k).cast(), v) };
+        }
+    }
+}
 
 /// `vpermb` indices that transpose the 8x8 bytes of a 512-bit register (byte `8i + j` takes
 /// byte `8j + i`), reversing the byte order within each qword when `reverse` is set (byte
@@ -206,7 +261,7 @@ unsafe fn census_row_gfni(
         }
     }
     // Rows `n..64` of the matrix stay zero.
-    let mut matrix = BitRows([0; 128]);
+    let mut matrix = BitRows([0; 64]);
     let mut x0 = 0;
     loop {
         // The last block overlaps the one before it when the width is not a multiple of 64.
@@ -218,7 +273,7 @@ unsafe fn census_row_gfni(
                 _mm512_loadu_si512(centre.as_ptr().add(x + 32).cast()),
             )
         };
-        for (m, &o) in matrix.0.chunks_exact_mut(2).zip(&offsets[..n]) {
+        for (m, &o) in matrix.halves_mut().chunks_exact_mut(2).zip(&offsets[..n]) {
             // SAFETY: `o = dy * pw + dx` with `dy < window.height` and `dx < window.width`, so
             // `o + x + 64 <= dy * pw + (2 * rx + width) = (dy + 1) * pw <= padded.len()`.
             let (lo, hi) = unsafe {
@@ -228,13 +283,69 @@ unsafe fn census_row_gfni(
             m[0] = _mm512_cmplt_epu16_mask(lo, c_lo);
             m[1] = _mm512_cmplt_epu16_mask(hi, c_hi);
         }
-        // SAFETY: `matrix` is 512 bytes, aligned to 64.
-        let rows: [__m512i; 8] =
-            std::array::from_fn(|k| unsafe { _mm512_load_si512(matrix.0.as_ptr().add(16 * k).cast()) });
-        for (k, v) in transpose_64x64(rows).into_iter().enumerate() {
-            // SAFETY: `x + 8k + 8 <= x + 64 <= width = bits.len()`.
-            unsafe { _mm512_storeu_si512(bits.as_mut_ptr().add(x + 8 * k).cast(), v) };
+        matrix.store_transposed(&mut bits[x..x + 64]);
+        x0 += 64;
+        if x0 >= width {
+            break;
         }
+    }
+}
+
+/// [`census_row_gfni`] for images whose samples are all multiples of 257 (see
+/// [`is_byte_scaled`]): the window rows are padded as high bytes, and one comparison of 64
+/// bytes gives a whole mask.
+///
+/// # Safety
+/// The CPU must have AVX-512F/BW/VL/VBMI and GFNI; the image at least 64 pixels wide.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi,gfni,avx2")]
+unsafe fn census_row_gfni_bytes(
+    image: &GrayImage,
+    window: CensusWindow,
+    y: usize,
+    padded: &mut [u8],
+    bits: &mut [u64],
+) {
+    use std::arch::x86_64::*;
+    let (width, height) = image.size();
+    let (rx, ry) = (window.width / 2, window.height / 2);
+    let pw = width + 2 * rx;
+    let n = window.width * window.height - 1;
+    assert!(width >= 64 && n <= 64 && padded.len() == window.height * pw && bits.len() == width);
+    let high = |v: u16| (v >> 8) as u8;
+    for (dy, p) in padded.chunks_exact_mut(pw).enumerate() {
+        let src = image.row((y + dy).saturating_sub(ry).min(height - 1));
+        p[..rx].fill(high(src[0]));
+        for (d, &s) in p[rx..rx + width].iter_mut().zip(src) {
+            *d = high(s);
+        }
+        p[rx + width..].fill(high(src[width - 1]));
+    }
+    // As in `census_row_gfni`; the centres are the middle padded row.
+    let mut offsets = [0usize; 64];
+    let mut bit = n;
+    for dy in 0..window.height {
+        for dx in 0..window.width {
+            if (dy, dx) != (ry, rx) {
+                bit -= 1;
+                offsets[bit] = dy * pw + dx;
+            }
+        }
+    }
+    let centre = &padded[ry * pw + rx..ry * pw + rx + width];
+    let mut matrix = BitRows([0; 64]);
+    let mut x0 = 0;
+    loop {
+        let x = x0.min(width - 64);
+        // SAFETY: `x + 64 <= width`: inside the centre row.
+        let c = unsafe { _mm512_loadu_si512(centre.as_ptr().add(x).cast()) };
+        for (m, &o) in matrix.0.iter_mut().zip(&offsets[..n]) {
+            // SAFETY: `o = dy * pw + dx` with `dy < window.height` and `dx < window.width`, so
+            // `o + x + 64 <= dy * pw + (2 * rx + width) = (dy + 1) * pw <= padded.len()`.
+            let v = unsafe { _mm512_loadu_si512(padded.as_ptr().add(o + x).cast()) };
+            *m = _mm512_cmplt_epu8_mask(v, c);
+        }
+        matrix.store_transposed(&mut bits[x..x + 64]);
         x0 += 64;
         if x0 >= width {
             break;
@@ -371,19 +482,24 @@ mod tests {
 
         #[test]
         fn every_kernel_matches_the_reference(width in 1usize..300, height in 1usize..20, window in 0usize..9,
-                                              levels in 1u32..=65535, big in any::<bool>(), seed in any::<u64>()) {
+                                              levels in 1u32..=65535, scale in 0u8..3, seed in any::<u64>()) {
             let (ww, wh) = [(3, 3), (5, 5), (9, 7), (7, 9), (13, 5), (5, 13), (1, 3), (3, 1), (9, 3)][window];
             // Windows wider or taller than the image are not used by the matcher (as in the
             // fixed-size test below).
             prop_assume!(width >= ww && height >= wh);
-            // Few distinct levels make many ties; `big` spreads them over the whole u16 range.
+            // Few distinct levels make many ties; `scale` 1 spreads them over the whole u16 range.
             let mut s = seed | 1;
             let img = GrayImage::from_fn(width, height, |_, _| {
                 s ^= s << 13;
                 s ^= s >> 7;
                 s ^= s << 17;
                 let v = (s % u64::from(levels)) as u16;
-                if big { v.wrapping_mul(40_503) } else { v }
+                match scale {
+                    0 => v,
+                    1 => v.wrapping_mul(40_503),
+                    // 8-bit images as loaded (`b · 257`), which the byte kernel takes.
+                    _ => (v % 256) * 257,
+                }
             });
             let window = CensusWindow { width: ww, height: wh };
             let mut reference = Image::new(width, height, 0u64);
