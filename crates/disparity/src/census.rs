@@ -30,7 +30,7 @@ enum Kernel {
 
 impl Kernel {
     /// The fastest kernel for `level`: the bit-matrix transpose needs AVX-512VBMI and GFNI on
-    /// top of the AVX-512 level (Ice Lake and later), older AVX-512 CPUs keep the plain kernel.
+    /// top of the AVX-512 level (Intel Ice Lake, AMD Zen 4 and later), older AVX-512 CPUs keep the plain kernel.
     fn for_level(level: crate::simd::Level) -> Kernel {
         #[cfg(target_arch = "x86_64")]
         {
@@ -102,12 +102,13 @@ fn census_row(
         // SAFETY: `Kernel::Gfni` is only chosen when the CPU has AVX-512F/BW/VL/VBMI and GFNI.
         Kernel::Gfni => unsafe { census_row_gfni(image, window, y, padded, bits) },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above, and `high_bytes` is as long as `padded`.
+        // SAFETY: `Kernel::GfniBytes` is only made from `Kernel::Gfni` (so the CPU has what it
+        // needs) and then `high_bytes` is as long as `padded`; the image is at least 64 wide.
         Kernel::GfniBytes if image.width() >= 64 => unsafe {
             census_row_gfni_bytes(image, window, y, high_bytes, bits)
         },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above.
+        // SAFETY: as above (only the CPU features matter here).
         Kernel::GfniBytes => unsafe { census_row_gfni(image, window, y, padded, bits) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `Kernel::Avx512` is only chosen at the AVX-512 level, detected on this CPU.
