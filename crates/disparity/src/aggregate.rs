@@ -29,7 +29,7 @@ use std::sync::Mutex;
 use crate::cost::{AdRows, AlignedRow, BtRow};
 use crate::path_u8::{self, padded_lanes_u8, PAD_U8};
 use crate::simd::{self, padded_lanes, Level, PathIn, PAD};
-use crate::sweep::FromRow;
+use crate::sweep::{FromRow, Trailing};
 use crate::wta::{select_row, Selection, WtaScratch};
 use crate::{DisparityRange, GrayImage, Image, PathCount};
 
@@ -103,10 +103,10 @@ trait PathCost: Copy + Default + Send + Sync + 'static {
         sum: &mut [u16],
         accumulate: bool,
     ) -> [Self; N];
-    /// [`crate::sweep::row_u8`] in this type: a row of a pass with the horizontal path in
-    /// registers; `false` (nothing done) where there is no such kernel.
     /// Whether [`PathCost::row`] has a kernel for this level and lane count.
     fn has_row(level: Level, lanes: usize) -> bool;
+    /// [`crate::sweep::row_u8`] in this type: a row of a pass with the horizontal path in
+    /// registers; `false` (nothing done) where there is no such kernel.
     #[allow(clippy::too_many_arguments)]
     fn row<const K: usize>(
         level: Level,
@@ -119,6 +119,7 @@ trait PathCost: Copy + Default + Send + Sync + 'static {
         sum: &mut [u16],
         reverse: bool,
         accumulate: bool,
+        trailing: Option<Trailing<'_, Self>>,
     ) -> bool;
 }
 
@@ -166,6 +167,7 @@ impl PathCost for u16 {
         _: &mut [u16],
         _: bool,
         _: bool,
+        _: Option<Trailing<'_, u16>>,
     ) -> bool {
         false
     }
@@ -216,8 +218,9 @@ impl PathCost for u8 {
         sum: &mut [u16],
         reverse: bool,
         accumulate: bool,
+        trailing: Option<Trailing<'_, u8>>,
     ) -> bool {
-        crate::sweep::row_u8(level, cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate)
+        crate::sweep::row_u8(level, cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing)
     }
 }
 
@@ -351,7 +354,8 @@ pub(crate) fn stream_and_select(inputs: &Inputs<'_>, strips: usize, overlap: usi
             scope.spawn(move |_| {
                 let y0 = strip * strip_rows;
                 let y1 = y0 + disparity.len() / width.max(1);
-                let mut sum = vec![0u16; width * inputs.range.count()];
+                // Two rows: one being aggregated, one waiting for its ← path.
+                let mut sum = vec![0u16; 2 * width * inputs.range.count()];
                 let warm = y0.saturating_sub(overlap);
                 if use_u8(inputs) {
                     let mut state = PassState::<u8>::new(inputs, Pass::Forward);
@@ -579,8 +583,44 @@ fn stream_rows_generic<T: PathCost>(
 ) {
     let (width, nd) = (inputs.image.width(), inputs.range.count());
     let lanes = T::lanes(nd);
+    let (sum, held_sum) = sum.split_at_mut(width * nd);
     // The ← path's P2 per pixel (stepping into `x` from `x + 1`), made once per row.
     let mut p2_row = vec![T::default(); width];
+    if width > 0 && T::has_row(level, lanes) {
+        // The ← path of each row runs beside the →, ↓ paths of the next, so the two dependency
+        // chains overlap; the row waiting for its ← path keeps its cost row and sums here.
+        let mut held_cost = AlignedRow::<T>::new(width * lanes);
+        let (mut sum, mut held_sum) = (sum, held_sum);
+        let mut held: Option<usize> = None;
+        for y in warm..y1 {
+            if y < y0 {
+                step_row(state, inputs, y, level, &mut [], false);
+                continue;
+            }
+            let trailing =
+                held.map(|_| Trailing { cost: &held_cost[..], p2: &p2_row[..], sum: &mut *held_sum });
+            step_row_with(state, inputs, y, level, sum, false, trailing);
+            if let Some(held_y) = held {
+                let out = &mut disparity[(held_y - y0) * width..(held_y - y0 + 1) * width];
+                select_row(held_sum, width, nd, inputs.selection, &mut state.scratch, out);
+            }
+            std::mem::swap(&mut state.cost_narrow, &mut held_cost);
+            std::mem::swap(&mut sum, &mut held_sum);
+            let row = inputs.image.row(y);
+            for (x, p) in p2_row.iter_mut().enumerate().take(width - 1) {
+                *p = T::narrow(inputs.p2.p2(row[x], row[x + 1]));
+            }
+            held = Some(y);
+        }
+        if let Some(held_y) = held {
+            let p1 = T::narrow(inputs.p1);
+            let ran = T::row(level, &held_cost, lanes, nd, p1, &p2_row, [], held_sum, true, true, None);
+            debug_assert!(ran);
+            let out = &mut disparity[(held_y - y0) * width..(held_y - y0 + 1) * width];
+            select_row(held_sum, width, nd, inputs.selection, &mut state.scratch, out);
+        }
+        return;
+    }
     for y in warm..y1 {
         if y < y0 {
             step_row(state, inputs, y, level, &mut [], false);
@@ -597,7 +637,7 @@ fn stream_rows_generic<T: PathCost>(
         for (x, p) in p2_row.iter_mut().enumerate().take(width.saturating_sub(1)) {
             *p = T::narrow(inputs.p2.p2(row[x], row[x + 1]));
         }
-        if !T::row(level, cost, lanes, nd, T::narrow(inputs.p1), &p2_row, [], sum, true, true) {
+        if !T::row(level, cost, lanes, nd, T::narrow(inputs.p1), &p2_row, [], sum, true, true, None) {
             let start = PathIn { prev: &state.zero[..], prev_min: T::default(), p2: T::default() };
             let mut h_min = T::default();
             for x in (0..width).rev() {
@@ -637,6 +677,21 @@ fn step_row<T: PathCost>(
     sum: &mut [u16],
     accumulate: bool,
 ) {
+    step_row_with(state, inputs, y, level, sum, accumulate, None);
+}
+
+/// [`step_row`], with the ← path of an earlier row (`trailing`) run in the same loop: only for
+/// stored rows through the whole-row kernel ([`PathCost::has_row`]).
+#[inline(always)]
+fn step_row_with<T: PathCost>(
+    state: &mut PassState<T>,
+    inputs: &Inputs<'_>,
+    y: usize,
+    level: Level,
+    sum: &mut [u16],
+    accumulate: bool,
+    trailing: Option<Trailing<'_, T>>,
+) {
     let width = inputs.image.width();
     let nd = inputs.range.count();
     let lanes = T::lanes(nd);
@@ -657,6 +712,7 @@ fn step_row<T: PathCost>(
     });
     T::make_costs(inputs, y, ad, &mut state.cost, &mut state.cost_narrow);
     let store = !sum.is_empty();
+    let has_trailing = trailing.is_some();
     let PassState { cost, cost_narrow, vertical, diag_a, diag_b, horizontal, zero, p2_rows, .. } = state;
     let cost = T::costs(level, cost, nd, cost_narrow);
     if store
@@ -672,6 +728,7 @@ fn step_row<T: PathCost>(
             [vertical, diag_a, diag_b],
             sum,
             accumulate,
+            trailing,
         )
     {
         vertical.swap(0, 1);
@@ -679,6 +736,7 @@ fn step_row<T: PathCost>(
         diag_b.swap(0, 1);
         return;
     }
+    assert!(!has_trailing, "a trailing row needs the whole-row kernel");
     // A path entering the image: stepping from all-zero costs yields the matching cost.
     let start = PathIn { prev: &zero[..], prev_min: T::default(), p2: T::default() };
     let [v_prev, v_cur] = vertical;
@@ -774,6 +832,7 @@ fn row_kernel<T: PathCost>(
     [vertical, diag_a, diag_b]: [&mut [RowPaths<T>; 2]; 3],
     sum: &mut [u16],
     accumulate: bool,
+    trailing: Option<Trailing<'_, T>>,
 ) -> bool {
     // Only where the kernel exists (the `u16` passes and other CPUs step pixel by pixel).
     let width = row.len();
@@ -826,7 +885,7 @@ fn row_kernel<T: PathCost>(
             from(diag_a, -step, p2_a, first_row),
             from(diag_b, step, p2_b, first_row),
         ];
-        T::row(level, cost, lanes, nd, p1, p2_h, paths, sum, !forward, accumulate)
+        T::row(level, cost, lanes, nd, p1, p2_h, paths, sum, !forward, accumulate, trailing)
     } else {
         T::row(
             level,
@@ -839,6 +898,7 @@ fn row_kernel<T: PathCost>(
             sum,
             !forward,
             accumulate,
+            trailing,
         )
     }
 }

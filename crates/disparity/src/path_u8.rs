@@ -32,6 +32,16 @@ pub(crate) fn fits(max_cost: u16, p1: u16, max_p2: u16) -> bool {
     u32::from(max_cost) + u32::from(max_p2.max(p1)) <= u32::from(MAX_PATH_COST)
 }
 
+/// Word indices that interleave the even-lane and odd-lane words of a 2×32-word pair back into
+/// lane order (for `_mm512_permutex2var_epi16`): result word `m` is disparity `base + m`, taken
+/// from the even words (indices 0..32) or the odd words (32..64) at position `(base + m) / 2`.
+pub(crate) fn interleave(base: usize) -> [i16; 32] {
+    std::array::from_fn(|m| {
+        let d = base + m;
+        (if d.is_multiple_of(2) { d / 2 } else { 32 + d / 2 }) as i16
+    })
+}
+
 /// One path's input for an 8-bit step.
 pub(crate) type PathInU8<'a> = PathIn<'a, u8>;
 
@@ -103,7 +113,7 @@ pub(crate) fn path_step_u8_scalar<const N: usize>(
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::PathInU8;
+    use super::{interleave, PathInU8};
 
     /// Minimum of the 32 unsigned 8-bit lanes.
     #[inline]
@@ -114,16 +124,6 @@ mod x86 {
         let m = _mm_min_epu8(m, _mm_srli_epi16::<8>(m));
         let m = _mm_and_si128(m, _mm_set1_epi16(0xff));
         _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u8
-    }
-
-    /// Word indices that interleave the even-lane and odd-lane words of a 2×32-word pair back
-    /// into lane order: result word `m` is disparity `base + m`, taken from the even words
-    /// (indices 0..32) or the odd words (32..64) at position `(base + m) / 2`.
-    fn interleave(base: usize) -> [i16; 32] {
-        std::array::from_fn(|m| {
-            let d = base + m;
-            (if d.is_multiple_of(2) { d / 2 } else { 32 + d / 2 }) as i16
-        })
     }
 
     /// AVX-512BW [`super::path_step_u8`]: 64 disparities per instruction (and a 32-lane step

@@ -35,6 +35,16 @@ pub(crate) struct FromRow<'a, T = u8> {
     pub out_mins: &'a mut [T],
 }
 
+/// A second, independent row run in the same loop as a [`row_u8`] row: the horizontal path
+/// alone, right to left, added into `sum`. Its dependency chain overlaps the first row's, so
+/// each fills the other's latency (the single-pass aggregation runs the ← path of one row beside
+/// the →, ↓ paths of the next).
+pub(crate) struct Trailing<'a, T = u8> {
+    pub cost: &'a [T],
+    pub p2: &'a [T],
+    pub sum: &'a mut [u16],
+}
+
 /// Whether [`row_u8`] has a kernel for this level and lane count.
 pub(crate) fn row_u8_available(level: Level, lanes: usize) -> bool {
     cfg!(target_arch = "x86_64") && level == Level::Avx512 && lanes <= MAX_REGISTER_LANES
@@ -46,8 +56,9 @@ pub(crate) fn row_u8_available(level: Level, lanes: usize) -> bool {
 /// of their path costs into `sum` (`nd` per pixel).
 ///
 /// `cost` holds `lanes` 8-bit matching costs per pixel ([`crate::path_u8::padded_lanes_u8`]
-/// lanes, 255 past the last disparity). Returns `false`, touching nothing, when this CPU or this
-/// lane count has no register kernel; the caller then steps pixel by pixel.
+/// lanes, 255 past the last disparity). With `trailing`, that row's ← path runs in the same loop.
+/// Returns `false`, touching nothing, when this CPU or this lane count has no register kernel;
+/// the caller then steps pixel by pixel.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn row_u8<const K: usize>(
     level: Level,
@@ -60,6 +71,7 @@ pub(crate) fn row_u8<const K: usize>(
     sum: &mut [u16],
     reverse: bool,
     accumulate: bool,
+    trailing: Option<Trailing<'_>>,
 ) -> bool {
     assert!(lanes.is_multiple_of(LANES_U8) && nd <= lanes && lanes > 0);
     let width = cost.len() / lanes;
@@ -70,6 +82,9 @@ pub(crate) fn row_u8<const K: usize>(
         assert!(path.dx.abs() <= 1 && path.p2.len() == width);
         assert!(path.out.len() == width * stride && path.out_mins.len() == width);
     }
+    if let Some(t) = &trailing {
+        assert!(t.cost.len() == cost.len() && t.p2.len() == width && t.sum.len() == sum.len());
+    }
     if width == 0 || !row_u8_available(level, lanes) {
         return false;
     }
@@ -77,13 +92,35 @@ pub(crate) fn row_u8<const K: usize>(
     {
         // SAFETY: AVX-512 F/BW/VL is present (the level is only chosen when it is); the lengths
         // were checked above and `lanes <= 64 * NV` for the chosen `NV`.
-        unsafe {
-            match lanes.div_ceil(64) {
-                1 => x86::row_avx512::<1, K>(cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate),
-                2 => x86::row_avx512::<2, K>(cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate),
-                3 => x86::row_avx512::<3, K>(cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate),
-                _ => x86::row_avx512::<4, K>(cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate),
-            }
+        // Tests turn the VBMI kernel off to cover the other one on CPUs that have both.
+        #[cfg(test)]
+        let allowed = !tests::NO_VBMI.with(|n| n.get());
+        #[cfg(not(test))]
+        let allowed = true;
+        let vbmi = allowed && std::arch::is_x86_feature_detected!("avx512vbmi");
+        macro_rules! run {
+            ($nv:literal) => {
+                // SAFETY: AVX-512 F/BW/VL is present (the level is only chosen when it is), VBMI
+                // was detected for the VBMI kernel; the lengths were checked above and
+                // `64 * ($nv - 1) < lanes <= 64 * $nv`.
+                unsafe {
+                    if vbmi {
+                        x86::row_avx512_vbmi::<$nv, K>(
+                            cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing,
+                        )
+                    } else {
+                        x86::row_avx512::<$nv, K>(
+                            cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing,
+                        )
+                    }
+                }
+            };
+        }
+        match lanes.div_ceil(64) {
+            1 => run!(1),
+            2 => run!(2),
+            3 => run!(3),
+            _ => run!(4),
         }
         true
     }
@@ -95,7 +132,8 @@ pub(crate) fn row_u8<const K: usize>(
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::FromRow;
+    use super::{FromRow, Trailing};
+    use crate::path_u8::interleave;
 
     /// The minimum of the 64 unsigned bytes of `m`, in every byte.
     #[inline]
@@ -124,7 +162,190 @@ mod x86 {
         (_mm512_alignr_epi8::<15>(v, down), _mm512_alignr_epi8::<1>(up, v))
     }
 
-    /// AVX-512 [`super::row_u8`] with the horizontal path in `NV` registers of 64 lanes.
+    /// What every pixel step of a row shares.
+    struct Shape<const NV: usize> {
+        width: usize,
+        lanes: usize,
+        nd: usize,
+        pad: __m512i,
+        p1: __m512i,
+        /// Lanes past `lanes` are loaded as the pad (255), like the pads of the memory layout.
+        lane_mask: [__mmask64; NV],
+        /// [`interleave`] orders of the low and high 32 lanes.
+        order: [__m512i; 2],
+        /// Byte indices of the lanes below and above, for [`neighbours_vbmi`].
+        shift: [__m512i; 2],
+    }
+
+    /// A horizontal path's state: its costs at the previous pixel and their minimum (broadcast).
+    struct Horizontal<const NV: usize> {
+        path: [__m512i; NV],
+        min: __m512i,
+    }
+
+    /// One path step from the previous vector `prev` (with its `d ∓ 1` neighbours `l`, `r`).
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw")]
+    fn step(
+        p1: __m512i,
+        c: __m512i,
+        prev: __m512i,
+        l: __m512i,
+        r: __m512i,
+        prev_min: __m512i,
+        jump: __m512i,
+    ) -> __m512i {
+        let near = _mm512_adds_epu8(_mm512_min_epu8(l, r), p1);
+        let best = _mm512_min_epu8(_mm512_min_epu8(prev, near), jump);
+        _mm512_adds_epu8(c, _mm512_sub_epi8(best, prev_min))
+    }
+
+    /// `total += v` in 16 bits, as the sums of the even and of the odd lanes (a mask and a shift,
+    /// no cross-lane widening; [`interleave`] puts them back in order once per pixel).
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw")]
+    fn add_even_odd(total: &mut [__m512i; 2], v: __m512i) {
+        total[0] = _mm512_add_epi16(total[0], _mm512_and_si512(v, _mm512_set1_epi16(0xff)));
+        total[1] = _mm512_add_epi16(total[1], _mm512_srli_epi16::<8>(v));
+    }
+
+    /// The minimum of the 64 unsigned bytes of `m` (off the horizontal chain: fewer shuffles than
+    /// [`min_broadcast_epu8`]).
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
+    fn hmin_epu8(m: __m512i) -> u8 {
+        let m = _mm256_min_epu8(_mm512_castsi512_si256(m), _mm512_extracti64x4_epi64::<1>(m));
+        let m = _mm_min_epu8(_mm256_castsi256_si128(m), _mm256_extracti128_si256::<1>(m));
+        let m = _mm_min_epu8(m, _mm_srli_epi16::<8>(m));
+        let m = _mm_and_si128(m, _mm_set1_epi16(0xff));
+        _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u8
+    }
+
+    /// [`neighbours`] with one VBMI byte permutation each.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+    fn neighbours_vbmi(
+        lower: __m512i,
+        v: __m512i,
+        upper: __m512i,
+        order: &[__m512i; 2],
+    ) -> (__m512i, __m512i) {
+        (_mm512_permutex2var_epi8(lower, order[0], v), _mm512_permutex2var_epi8(v, order[1], upper))
+    }
+
+    /// The steps of the `i`-th pixel `x` of a row: the horizontal path `h`, then the paths from
+    /// the previous row, their sum stored (or added) into `sum`.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F/BW/VL; lengths as checked by [`super::row_u8`]. Always
+    /// inlined into [`row_avx512`] (hence no `target_feature` of its own), so that the
+    /// horizontal path stays in registers from pixel to pixel.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn pixel<const NV: usize, const K: usize, const VBMI: bool>(
+        shape: &Shape<NV>,
+        h: &mut Horizontal<NV>,
+        i: usize,
+        x: usize,
+        cost: &[u8],
+        p2: &[u8],
+        from_row: &mut [FromRow<'_>; K],
+        sum: &mut [u16],
+        accumulate: bool,
+        reverse: bool,
+    ) {
+        let Shape { width, lanes, nd, pad, p1, lane_mask, order, shift } = *shape;
+        let stride = lanes + 2;
+        // SAFETY: pixel `x < width` has `lanes` costs at `x * lanes`; the loads are masked to
+        // them.
+        let c: [__m512i; NV] = std::array::from_fn(|v| unsafe {
+            _mm512_mask_loadu_epi8(pad, lane_mask[v], cost.as_ptr().add(x * lanes + 64 * v).cast())
+        });
+        if i == 0 {
+            // Entering the row: the path cost is the matching cost.
+            h.path = c;
+        } else {
+            let jump = _mm512_adds_epu8(h.min, _mm512_set1_epi8(p2[x] as i8));
+            let prev = h.path;
+            for v in 0..NV {
+                let lower = if v == 0 { pad } else { prev[v - 1] };
+                let upper = if v + 1 == NV { pad } else { prev[v + 1] };
+                let (l, r) = if VBMI {
+                    neighbours_vbmi(lower, prev[v], upper, &shift)
+                } else {
+                    neighbours(lower, prev[v], upper)
+                };
+                h.path[v] = step(p1, c[v], prev[v], l, r, h.min, jump);
+            }
+        }
+        let mut m = h.path[0];
+        for p in &h.path[1..] {
+            m = _mm512_min_epu8(m, *p);
+        }
+        h.min = min_broadcast_epu8(m);
+        // The 16-bit sums, one register per 32 disparities.
+        let mut total: [[__m512i; 2]; NV] = [[_mm512_setzero_si512(); 2]; NV];
+        for v in 0..NV {
+            add_even_odd(&mut total[v], h.path[v]);
+        }
+        for from in from_row.iter_mut() {
+            let f = x as isize + from.dx;
+            let out = from.out.as_mut_ptr().add(x * stride + 1);
+            let mut m = pad;
+            let fresh = from.prev.is_empty() || f < 0 || f >= width as isize;
+            let (jump, prev_min, src) = if fresh {
+                (pad, pad, std::ptr::null())
+            } else {
+                let f = f as usize;
+                let prev_min = from.prev_mins[f];
+                let jump = _mm512_set1_epi8(prev_min.saturating_add(from.p2[x]) as i8);
+                (jump, _mm512_set1_epi8(prev_min as i8), from.prev.as_ptr().add(f * stride))
+            };
+            for v in 0..NV {
+                let o = if fresh {
+                    // The path enters the image here.
+                    c[v]
+                } else {
+                    // SAFETY: lane j of register v reads entries `64v + j + {0, 1, 2}` of pixel
+                    // `f`'s `lanes + 2`; the masks keep `64v + j < lanes`.
+                    let at = |o: usize| unsafe {
+                        _mm512_mask_loadu_epi8(pad, lane_mask[v], src.add(64 * v + o).cast())
+                    };
+                    step(p1, c[v], at(1), at(0), at(2), prev_min, jump)
+                };
+                // SAFETY: masked to the `lanes` entries after pixel `x`'s pad.
+                _mm512_mask_storeu_epi8(out.add(64 * v).cast(), lane_mask[v], o);
+                m = _mm512_min_epu8(m, o);
+                add_even_odd(&mut total[v], o);
+            }
+            from.out_mins[x] = hmin_epu8(m);
+        }
+        let s = sum.as_mut_ptr().add(x * nd);
+        if accumulate {
+            // The sums were stored a while ago: ask for the ones a few pixels ahead.
+            let ahead = if reverse { x.wrapping_sub(6) } else { x + 6 };
+            if ahead < width {
+                let line = sum.as_ptr().add(ahead * nd).cast::<i8>();
+                for b in (0..2 * nd).step_by(64) {
+                    _mm_prefetch::<_MM_HINT_T0>(line.add(b));
+                }
+            }
+        }
+        for q in 0..nd.div_ceil(32) {
+            let n = nd - 32 * q;
+            let mask: __mmask32 = if n >= 32 { !0 } else { (1u32 << n) - 1 };
+            // SAFETY: masked to the `nd` sums of pixel `x`.
+            let dst = s.add(32 * q);
+            let [even, odd] = total[q / 2];
+            let mut t = _mm512_permutex2var_epi16(even, order[q % 2], odd);
+            if accumulate {
+                t = _mm512_add_epi16(t, _mm512_maskz_loadu_epi16(mask, dst.cast()));
+            }
+            _mm512_mask_storeu_epi16(dst.cast(), mask, t);
+        }
+    }
+
+    /// AVX-512 [`super::row_u8`] with the horizontal paths in `NV` registers of 64 lanes.
     ///
     /// # Safety
     /// The CPU must have AVX-512F/BW/VL; lengths as checked by [`super::row_u8`], and
@@ -137,17 +358,57 @@ mod x86 {
         nd: usize,
         p1: u8,
         p2: &[u8],
+        from_row: [FromRow<'_>; K],
+        sum: &mut [u16],
+        reverse: bool,
+        accumulate: bool,
+        trailing: Option<Trailing<'_>>,
+    ) {
+        row_body::<NV, K, false>(cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing)
+    }
+
+    /// [`row_avx512`] with VBMI byte permutations for the `d ± 1` neighbours.
+    ///
+    /// # Safety
+    /// As [`row_avx512`], and the CPU must have AVX-512 VBMI.
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) unsafe fn row_avx512_vbmi<const NV: usize, const K: usize>(
+        cost: &[u8],
+        lanes: usize,
+        nd: usize,
+        p1: u8,
+        p2: &[u8],
+        from_row: [FromRow<'_>; K],
+        sum: &mut [u16],
+        reverse: bool,
+        accumulate: bool,
+        trailing: Option<Trailing<'_>>,
+    ) {
+        row_body::<NV, K, true>(cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing)
+    }
+
+    /// The body of [`row_avx512`] and [`row_avx512_vbmi`], inlined into each.
+    ///
+    /// # Safety
+    /// As [`row_avx512`] (and [`row_avx512_vbmi`] with `VBMI`).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn row_body<const NV: usize, const K: usize, const VBMI: bool>(
+        cost: &[u8],
+        lanes: usize,
+        nd: usize,
+        p1: u8,
+        p2: &[u8],
         mut from_row: [FromRow<'_>; K],
         sum: &mut [u16],
         reverse: bool,
         accumulate: bool,
+        mut trailing: Option<Trailing<'_>>,
     ) {
         let width = cost.len() / lanes;
-        let stride = lanes + 2;
         let pad = _mm512_set1_epi8(-1);
-        let p1v = _mm512_set1_epi8(p1 as i8);
-        // Lanes past `lanes` are loaded as the pad (255), like the pads of the memory layout.
-        let lane_mask: [__mmask64; NV] = std::array::from_fn(|v| {
+        let lane_mask = std::array::from_fn(|v| {
             let n = lanes.saturating_sub(64 * v).min(64);
             if n == 64 {
                 !0
@@ -155,117 +416,34 @@ mod x86 {
                 (1u64 << n) - 1
             }
         });
-        let sum_mask = |q: usize| -> __mmask32 {
-            let n = nd - 32 * q;
-            if n >= 32 {
-                !0
-            } else {
-                (1u32 << n) - 1
-            }
-        };
-        let sum_blocks = nd.div_ceil(32);
-        // One step of a path from its previous vector `prev` (minimum `prev_min` broadcast).
-        let step = |c: __m512i, prev: __m512i, l: __m512i, r: __m512i, prev_min: __m512i, jump: __m512i| {
-            let near = _mm512_adds_epu8(_mm512_min_epu8(l, r), p1v);
-            let best = _mm512_min_epu8(_mm512_min_epu8(prev, near), jump);
-            _mm512_adds_epu8(c, _mm512_sub_epi8(best, prev_min))
-        };
-        let mut path = [pad; NV];
-        let mut path_min = _mm512_setzero_si512();
+        let load = |i: &[i16; 32]| _mm512_loadu_si512(i.as_ptr().cast());
+        let order = [load(&interleave(0)), load(&interleave(32))];
+        // Lane j of "d - 1" is lane j - 1 of this register (index 64 + j - 1: the second
+        // operand), lane 0 the last lane of the one below (63); lane j of "d + 1" is lane j + 1
+        // of this register, lane 63 the first lane of the one above (64).
+        let below: [u8; 64] = std::array::from_fn(|j| if j == 0 { 63 } else { 63 + j as u8 });
+        let above: [u8; 64] = std::array::from_fn(|j| j as u8 + 1);
+        let shift = [_mm512_loadu_si512(below.as_ptr().cast()), _mm512_loadu_si512(above.as_ptr().cast())];
+        let p1 = _mm512_set1_epi8(p1 as i8);
+        let shape = Shape::<NV> { width, lanes, nd, pad, p1, lane_mask, order, shift };
+        let mut h = Horizontal { path: [pad; NV], min: _mm512_setzero_si512() };
+        let mut back = Horizontal { path: [pad; NV], min: _mm512_setzero_si512() };
         for i in 0..width {
             let x = if reverse { width - 1 - i } else { i };
-            // SAFETY: pixel `x < width` has `lanes` costs at `x * lanes`; the loads are masked to
-            // them.
-            let c: [__m512i; NV] = std::array::from_fn(|v| unsafe {
-                _mm512_mask_loadu_epi8(pad, lane_mask[v], cost.as_ptr().add(x * lanes + 64 * v).cast())
-            });
-            if i == 0 {
-                // Entering the row: the path cost is the matching cost.
-                path = c;
-            } else {
-                let jump = _mm512_adds_epu8(path_min, _mm512_set1_epi8(p2[x] as i8));
-                let prev = path;
-                for v in 0..NV {
-                    let lower = if v == 0 { pad } else { prev[v - 1] };
-                    let upper = if v + 1 == NV { pad } else { prev[v + 1] };
-                    let (l, r) = neighbours(lower, prev[v], upper);
-                    path[v] = step(c[v], prev[v], l, r, path_min, jump);
-                }
-            }
-            let mut m = path[0];
-            for p in &path[1..] {
-                m = _mm512_min_epu8(m, *p);
-            }
-            path_min = min_broadcast_epu8(m);
-            // The 16-bit sums, one register per 32 disparities.
-            let mut total: [[__m512i; 2]; NV] = std::array::from_fn(|v| {
-                [
-                    _mm512_cvtepu8_epi16(_mm512_castsi512_si256(path[v])),
-                    _mm512_cvtepu8_epi16(_mm512_extracti64x4_epi64::<1>(path[v])),
-                ]
-            });
-            for from in from_row.iter_mut() {
-                let f = x as isize + from.dx;
-                let out = from.out.as_mut_ptr().add(x * stride + 1);
-                let mut m = pad;
-                if from.prev.is_empty() || f < 0 || f >= width as isize {
-                    // The path enters the image here.
-                    for v in 0..NV {
-                        // SAFETY: masked to the `lanes` entries after pixel `x`'s pad.
-                        _mm512_mask_storeu_epi8(out.add(64 * v).cast(), lane_mask[v], c[v]);
-                        m = _mm512_min_epu8(m, c[v]);
-                        total[v][0] =
-                            _mm512_add_epi16(total[v][0], _mm512_cvtepu8_epi16(_mm512_castsi512_si256(c[v])));
-                        total[v][1] = _mm512_add_epi16(
-                            total[v][1],
-                            _mm512_cvtepu8_epi16(_mm512_extracti64x4_epi64::<1>(c[v])),
-                        );
-                    }
-                } else {
-                    let f = f as usize;
-                    let prev_min = from.prev_mins[f];
-                    let jump = _mm512_set1_epi8(prev_min.saturating_add(from.p2[x]) as i8);
-                    let prev_min = _mm512_set1_epi8(prev_min as i8);
-                    let src = from.prev.as_ptr().add(f * stride);
-                    for v in 0..NV {
-                        // SAFETY: lane j of register v reads entries `64v + j + {0, 1, 2}` of
-                        // pixel `f`'s `lanes + 2`; the masks keep `64v + j < lanes`.
-                        let at = |o: usize| unsafe {
-                            _mm512_mask_loadu_epi8(pad, lane_mask[v], src.add(64 * v + o).cast())
-                        };
-                        let o = step(c[v], at(1), at(0), at(2), prev_min, jump);
-                        _mm512_mask_storeu_epi8(out.add(64 * v).cast(), lane_mask[v], o);
-                        m = _mm512_min_epu8(m, o);
-                        total[v][0] =
-                            _mm512_add_epi16(total[v][0], _mm512_cvtepu8_epi16(_mm512_castsi512_si256(o)));
-                        total[v][1] = _mm512_add_epi16(
-                            total[v][1],
-                            _mm512_cvtepu8_epi16(_mm512_extracti64x4_epi64::<1>(o)),
-                        );
-                    }
-                }
-                from.out_mins[x] = _mm_cvtsi128_si32(_mm512_castsi512_si128(min_broadcast_epu8(m))) as u8;
-            }
-            let s = sum.as_mut_ptr().add(x * nd);
-            if accumulate {
-                // The other pass stored these sums long ago: ask for the ones a few pixels ahead.
-                let ahead = if reverse { x.wrapping_sub(6) } else { x + 6 };
-                if ahead < width {
-                    let line = sum.as_ptr().add(ahead * nd).cast::<i8>();
-                    for b in (0..2 * nd).step_by(64) {
-                        _mm_prefetch::<_MM_HINT_T0>(line.add(b));
-                    }
-                }
-            }
-            for q in 0..sum_blocks {
-                let mask = sum_mask(q);
-                // SAFETY: masked to the `nd` sums of pixel `x`.
-                let dst = s.add(32 * q);
-                let mut t = total[q / 2][q % 2];
-                if accumulate {
-                    t = _mm512_add_epi16(t, _mm512_maskz_loadu_epi16(mask, dst.cast()));
-                }
-                _mm512_mask_storeu_epi16(dst.cast(), mask, t);
+            pixel::<NV, K, VBMI>(&shape, &mut h, i, x, cost, p2, &mut from_row, sum, accumulate, reverse);
+            if let Some(t) = &mut trailing {
+                pixel::<NV, 0, VBMI>(
+                    &shape,
+                    &mut back,
+                    i,
+                    width - 1 - i,
+                    t.cost,
+                    t.p2,
+                    &mut [],
+                    t.sum,
+                    true,
+                    true,
+                );
             }
         }
     }
@@ -277,6 +455,12 @@ mod tests {
     use crate::path_u8::{padded_lanes_u8, path_step_u8_scalar, PAD_U8};
     use crate::simd::{supported_levels, PathIn};
     use proptest::prelude::*;
+    use std::cell::Cell;
+
+    thread_local! {
+        /// Turns the VBMI kernel off (to test the other one on CPUs that have both).
+        pub(super) static NO_VBMI: Cell<bool> = const { Cell::new(false) };
+    }
 
     /// The readable reference of [`row_u8`]: the per-pixel scalar step along the row, returning
     /// the paths' new costs and minima.
@@ -388,17 +572,19 @@ mod tests {
                 };
                 let ran = match (paths, level) {
                     (0, None) => { row_u8_scalar::<0>(&cost, lanes, nd, p1, &p2, &mut [], &mut s, reverse, accumulate); true }
-                    (0, Some(l)) => row_u8::<0>(l, &cost, lanes, nd, p1, &p2, [], &mut s, reverse, accumulate),
+                    (0, Some(l)) => row_u8::<0>(l, &cost, lanes, nd, p1, &p2, [], &mut s, reverse, accumulate, None),
                     (1, None) => { row_u8_scalar(&cost, lanes, nd, p1, &p2, &mut [from(0)], &mut s, reverse, accumulate); true }
-                    (1, Some(l)) => row_u8(l, &cost, lanes, nd, p1, &p2, [from(0)], &mut s, reverse, accumulate),
+                    (1, Some(l)) => row_u8(l, &cost, lanes, nd, p1, &p2, [from(0)], &mut s, reverse, accumulate, None),
                     (_, None) => { row_u8_scalar(&cost, lanes, nd, p1, &p2, &mut [from(0), from(1), from(2)], &mut s, reverse, accumulate); true }
-                    (_, Some(l)) => row_u8(l, &cost, lanes, nd, p1, &p2, [from(0), from(1), from(2)], &mut s, reverse, accumulate),
+                    (_, Some(l)) => row_u8(l, &cost, lanes, nd, p1, &p2, [from(0), from(1), from(2)], &mut s, reverse, accumulate, None),
                 };
                 (ran, s, outs, out_mins)
             };
             let (_, expected, expected_outs, expected_mins) = run(None);
-            for level in supported_levels() {
+            for (level, no_vbmi) in supported_levels().into_iter().flat_map(|l| [(l, false), (l, true)]) {
+                NO_VBMI.with(|n| n.set(no_vbmi));
                 let (ran, got, outs, out_mins) = run(Some(level));
+                NO_VBMI.with(|n| n.set(false));
                 if row_u8_available(level, lanes) {
                     prop_assert!(ran, "the register kernel did not run");
                 }
