@@ -283,10 +283,10 @@ mod x86 {
             m = _mm512_min_epu8(m, *p);
         }
         h.min = min_broadcast_epu8(m);
-        // The 16-bit sums, one register per 32 disparities.
+        // The 16-bit sums of the even and the odd lanes of each register.
         let mut total: [[__m512i; 2]; NV] = [[_mm512_setzero_si512(); 2]; NV];
-        for v in 0..NV {
-            add_even_odd(&mut total[v], h.path[v]);
+        for (t, &v) in total.iter_mut().zip(&h.path) {
+            add_even_odd(t, v);
         }
         for from in from_row.iter_mut() {
             let f = x as isize + from.dx;
