@@ -244,23 +244,12 @@ unsafe fn census_row_gfni(
         return census_row_generic(image, window, y, padded, bits);
     }
     pad_window_rows(image, window, y, padded);
-    let (rx, ry) = (window.width / 2, window.height / 2);
+    let rx = window.width / 2;
     let pw = width + 2 * rx;
     let n = window.width * window.height - 1;
     assert!(n <= 64 && padded.len() == window.height * pw && bits.len() == width);
     let centre = image.row(y);
-    // `offsets[i]`: where in `padded` the neighbour of census bit `i` of pixel 0 is. Window
-    // position `r` (row by row, centre skipped) is bit `n - 1 - r`.
-    let mut offsets = [0usize; 64];
-    let mut bit = n;
-    for dy in 0..window.height {
-        for dx in 0..window.width {
-            if (dy, dx) != (ry, rx) {
-                bit -= 1;
-                offsets[bit] = dy * pw + dx;
-            }
-        }
-    }
+    let offsets = neighbour_offsets(window, pw);
     // Rows `n..64` of the matrix stay zero.
     let mut matrix = BitRows([0; 64]);
     let mut x0 = 0;
@@ -290,6 +279,24 @@ unsafe fn census_row_gfni(
             break;
         }
     }
+}
+
+/// `offsets[i]`: where in the padded window rows (`pw` entries each) the neighbour of census bit
+/// `i` of pixel 0 is. Window position `r` (row by row, centre skipped) is bit `n - 1 - r`.
+#[cfg(target_arch = "x86_64")]
+fn neighbour_offsets(window: CensusWindow, pw: usize) -> [usize; 64] {
+    let (rx, ry) = (window.width / 2, window.height / 2);
+    let mut offsets = [0usize; 64];
+    let mut bit = window.width * window.height - 1;
+    for dy in 0..window.height {
+        for dx in 0..window.width {
+            if (dy, dx) != (ry, rx) {
+                bit -= 1;
+                offsets[bit] = dy * pw + dx;
+            }
+        }
+    }
+    offsets
 }
 
 /// [`census_row_gfni`] for images whose samples are all multiples of 257 (see
@@ -323,16 +330,7 @@ unsafe fn census_row_gfni_bytes(
         p[rx + width..].fill(high(src[width - 1]));
     }
     // As in `census_row_gfni`; the centres are the middle padded row.
-    let mut offsets = [0usize; 64];
-    let mut bit = n;
-    for dy in 0..window.height {
-        for dx in 0..window.width {
-            if (dy, dx) != (ry, rx) {
-                bit -= 1;
-                offsets[bit] = dy * pw + dx;
-            }
-        }
-    }
+    let offsets = neighbour_offsets(window, pw);
     let centre = &padded[ry * pw + rx..ry * pw + rx + width];
     let mut matrix = BitRows([0; 64]);
     let mut x0 = 0;
