@@ -15,7 +15,9 @@ pub fn census(image: &GrayImage, params: &SgmParams) -> Image<u64> {
 }
 
 /// The matching costs of every row as the aggregation computes them (census Hamming distance,
-/// plus the intensity term for AD-census as `params.matching_cost` says); returns a checksum.
+/// plus the intensity term for AD-census as `params.matching_cost` says): in 8 bits where the
+/// aggregation runs 8-bit path costs (AVX-512, costs and penalties within the 8-bit bound), else
+/// in 16; returns a checksum.
 pub fn matching_costs(
     left: &GrayImage,
     right: &GrayImage,
@@ -26,7 +28,10 @@ pub fn matching_costs(
     let nd = params.range.count();
     let census_bits = (params.census.width * params.census.height - 1) as u32;
     let worst = infeasible_cost(census_bits, params.matching_cost);
+    let narrow = simd::features().level == simd::Level::Avx512
+        && crate::path_u8::fits(worst, params.p1, params.p2.max(params.p1));
     let mut row = vec![0u16; census_left.width() * padded_lanes(nd)];
+    let mut row_u8 = vec![0u8; census_left.width() * crate::path_u8::padded_lanes_u8(nd)];
     let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());
     let mut check = 0u64;
     for y in 0..census_left.height() {
@@ -43,17 +48,14 @@ pub fn matching_costs(
             }
             MatchingCost::Census => None,
         };
-        simd::cost_row(
-            simd::features(),
-            census_left.row(y),
-            census_right.row(y),
-            params.range.min,
-            nd,
-            worst,
-            ad,
-            &mut row,
-        );
-        check = check.wrapping_add(u64::from(row[y % row.len()]));
+        let (l, r, min) = (census_left.row(y), census_right.row(y), params.range.min);
+        if narrow {
+            simd::cost_row_u8(simd::features(), l, r, min, nd, worst, ad, &mut row_u8);
+            check = check.wrapping_add(u64::from(row_u8[y % row_u8.len()]));
+        } else {
+            simd::cost_row(simd::features(), l, r, min, nd, worst, ad, &mut row);
+            check = check.wrapping_add(u64::from(row[y % row.len()]));
+        }
     }
     check
 }
