@@ -261,13 +261,15 @@ pub(crate) fn pass_state_bytes(width: usize, nd: usize, paths: PathCount) -> usi
     let lanes = padded_lanes(nd);
     let stride = lanes + 2;
     let row_paths = if paths == PathCount::Eight { 3 } else { 1 };
-    // cost row + two rows per row path (+ minima) + 2×2 horizontal + zero vector + WTA scratch
-    // (16-bit path costs: the 8-bit passes need less), saturating for absurd sizes.
+    // cost row + two rows per row path (+ minima) + 2×2 horizontal + zero vector + the P2 rows
+    // of the whole-row kernel + WTA scratch (16-bit path costs: the 8-bit passes need less),
+    // saturating for absurd sizes.
     let cost_row = width.saturating_mul(lanes);
     let row_path_rows = width.saturating_mul(stride + 1).saturating_mul(2 * row_paths);
     cost_row
         .saturating_add(row_path_rows)
         .saturating_add(5 * stride)
+        .saturating_add(width.saturating_mul(4))
         .saturating_mul(2)
         .saturating_add(WtaScratch::bytes(width))
 }
