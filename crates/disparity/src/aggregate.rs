@@ -568,6 +568,15 @@ fn stream_rows<T: PathCost>(
     }
 }
 
+/// The ← path's P2 of row `y`: `p2[x]` for stepping into `x` from `x + 1` (the last entry is not
+/// read).
+fn left_path_p2<T: PathCost>(inputs: &Inputs<'_>, y: usize, p2: &mut [T]) {
+    let row = inputs.image.row(y);
+    for (x, p) in p2.iter_mut().enumerate().take(row.len().saturating_sub(1)) {
+        *p = T::narrow(inputs.p2.p2(row[x], row[x + 1]));
+    }
+}
+
 /// The single pass over rows `warm..y1`: warm-up only above `y0`, then per row the forward
 /// directions (stored into the row's `sum`), the ← sweep (added) and the selection into the
 /// row's `disparity` (`disparity` starts at row `y0`).
@@ -608,10 +617,7 @@ fn stream_rows_generic<T: PathCost>(
             }
             std::mem::swap(&mut state.cost_narrow, &mut held_cost);
             std::mem::swap(&mut sum, &mut held_sum);
-            let row = inputs.image.row(y);
-            for (x, p) in p2_row.iter_mut().enumerate().take(width - 1) {
-                *p = T::narrow(inputs.p2.p2(row[x], row[x + 1]));
-            }
+            left_path_p2(inputs, y, &mut p2_row);
             held = Some(y);
         }
         if let Some(held_y) = held {
@@ -629,38 +635,34 @@ fn stream_rows_generic<T: PathCost>(
             continue;
         }
         step_row(state, inputs, y, level, sum, false);
-        // ←: right to left over the same cost row (already in `T`), added to the row's sums.
-        let row = inputs.image.row(y);
+        // ←: right to left over the same cost row (already in `T`), added to the row's sums (pixel
+        // by pixel: this loop runs where there is no whole-row kernel).
         let cost: &[T] = if state.cost_narrow.is_empty() {
             T::costs(level, &state.cost, nd, &mut [])
         } else {
             &state.cost_narrow
         };
-        for (x, p) in p2_row.iter_mut().enumerate().take(width.saturating_sub(1)) {
-            *p = T::narrow(inputs.p2.p2(row[x], row[x + 1]));
-        }
-        if !T::row(level, cost, lanes, nd, T::narrow(inputs.p1), &p2_row, [], sum, true, true, None) {
-            let start = PathIn { prev: &state.zero[..], prev_min: T::default(), p2: T::default() };
-            let mut h_min = T::default();
-            for x in (0..width).rev() {
-                let [h_prev, h_cur] = &mut state.horizontal;
-                let h_in = if x + 1 == width {
-                    start
-                } else {
-                    PathIn { prev: &h_prev[..], prev_min: h_min, p2: p2_row[x] }
-                };
-                let [m] = T::step(
-                    level,
-                    &cost[x * lanes..(x + 1) * lanes],
-                    T::narrow(inputs.p1),
-                    [h_in],
-                    [&mut h_cur[..]],
-                    &mut sum[x * nd..(x + 1) * nd],
-                    true,
-                );
-                h_min = m;
-                state.horizontal.swap(0, 1);
-            }
+        left_path_p2(inputs, y, &mut p2_row);
+        let start = PathIn { prev: &state.zero[..], prev_min: T::default(), p2: T::default() };
+        let mut h_min = T::default();
+        for x in (0..width).rev() {
+            let [h_prev, h_cur] = &mut state.horizontal;
+            let h_in = if x + 1 == width {
+                start
+            } else {
+                PathIn { prev: &h_prev[..], prev_min: h_min, p2: p2_row[x] }
+            };
+            let [m] = T::step(
+                level,
+                &cost[x * lanes..(x + 1) * lanes],
+                T::narrow(inputs.p1),
+                [h_in],
+                [&mut h_cur[..]],
+                &mut sum[x * nd..(x + 1) * nd],
+                true,
+            );
+            h_min = m;
+            state.horizontal.swap(0, 1);
         }
         let out = &mut disparity[(y - y0) * width..(y - y0 + 1) * width];
         select_row(sum, width, nd, inputs.selection, &mut state.scratch, out);
