@@ -236,8 +236,9 @@ pub(crate) struct Inputs<'a> {
     pub image: &'a GrayImage,
     pub census_left: &'a Image<u64>,
     pub census_right: &'a Image<u64>,
-    /// The right image and `(weight, cap)` of the AD-census term, if the cost has one.
-    pub ad: Option<(&'a GrayImage, u16, u16)>,
+    /// The left and right images of the AD-census intensity term and its `(weight, cap)`, if the
+    /// cost has one.
+    pub ad: Option<(&'a GrayImage, &'a GrayImage, u16, u16)>,
     pub range: DisparityRange,
     /// Matching cost of a disparity that points outside the right image.
     pub worst: u16,
@@ -709,8 +710,8 @@ fn step_row_with<T: PathCost>(
     state.prev_y = Some(y);
     let row = inputs.image.row(y);
     let prev_row = inputs.image.row(prev_y);
-    let ad = inputs.ad.map(|(right, weight, cap)| {
-        state.bt_left.fill(row, false);
+    let ad = inputs.ad.map(|(left, right, weight, cap)| {
+        state.bt_left.fill(left.row(y), false);
         state.bt_right.fill(right.row(y), true);
         AdRows { left: &state.bt_left, right: &state.bt_right, weight, cap }
     });

@@ -213,6 +213,16 @@ impl Matcher<'_> {
                     best = k;
                 }
             }
+            // At an end of the searched disparities the true minimum may lie beyond: rejected as
+            // in SGM (`post::reject_range_ends`), the image edge only in the lowest quarter.
+            let (first, last) = (0, self.count - 1);
+            if best == first
+                || best == last
+                || (best == lo && lo > first)
+                || (best == hi && hi < self.count / 4)
+            {
+                continue;
+            }
             if self.params.uniqueness_ratio > 0 {
                 let second = (lo..=hi).filter(|&k| k.abs_diff(best) > 1).map(|k| c[k]).min();
                 if let Some(second) = second {

@@ -32,6 +32,7 @@ mod image;
 mod memory;
 mod path_u8;
 mod post;
+mod radiometric;
 #[cfg(test)]
 mod reference;
 mod sgm;

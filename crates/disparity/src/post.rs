@@ -5,8 +5,8 @@ use crate::fill::fill_invalid;
 use crate::filter::{median_3x3, weighted_median, weighted_median_at_edges};
 use crate::snap::snap_edges;
 use crate::speckle::remove_speckles;
-use crate::status::untag;
-use crate::{DisparityMap, Error, GrayImage, Image, SgmParams};
+use crate::status::{tagged_nan, untag, PixelStatus};
+use crate::{DisparityMap, DisparityRange, Error, GrayImage, Image, SgmParams};
 
 /// The full result of [`crate::sgm_detailed`].
 #[derive(Clone, Debug, PartialEq)]
@@ -20,6 +20,14 @@ pub struct SgmOutput {
     /// With [`SgmParams::confidence`]: per pixel, a confidence in `[0, 1]` (census agreement at
     /// the match times the share of neighbours within 1 px); 0 for invalid and filled pixels.
     pub confidence: Option<Image<f32>>,
+    /// For [`crate::MatchingCost::AdCensus`]: how differently the two views render the same
+    /// surfaces, in 8-bit grey levels (the largest of the median grey-level differences between
+    /// matched pixels of a coarse census-only match over a 3×3 grid of tiles); `None` when not
+    /// measured (census cost, or a pair too small or too poorly matched to tell).
+    pub radiometric_difference: Option<f32>,
+    /// Whether the AD-census intensity term was used: it is dropped (census alone) when
+    /// [`SgmOutput::radiometric_difference`] shows the views differ, e.g. in exposure or gamma.
+    pub intensity_term: bool,
 }
 
 impl SgmOutput {
@@ -45,12 +53,41 @@ pub(crate) fn check(params: &SgmParams) -> Result<(), Error> {
 /// scenes, docs/accuracy.md).
 const WMF_EDGE_JUMP: f32 = 1.0;
 
-/// Median (if enabled), then [`after_median`].
+/// Range-end rejection, the median (if enabled), then [`after_median`].
 pub(crate) fn finish(mut disparity: DisparityMap, left: &GrayImage, params: &SgmParams) -> SgmOutput {
+    reject_range_ends(&mut disparity, params.range);
     if params.median {
         disparity = median_3x3(&disparity);
     }
     after_median(disparity, left, params)
+}
+
+/// Rejects ([`PixelStatus::RangeEnd`]) every winner at an end of the disparities searched for it: the range's first and last disparity, and near the left border,
+/// where the search stops at the image edge (disparity `x`), that edge while it lies in the lowest
+/// quarter of the range. Such a winner says only that the true minimum may lie beyond; too small
+/// a disparity puts the point far behind the scene. Higher up the edge stays: the true disparity
+/// can only be larger, the point only nearer, and measured on the Middlebury scenes most of those
+/// winners are right (docs/robustness.md). Winner-takes-all refines no subpixel offset at the
+/// ends, so these pixels are exactly the ones whose disparity equals an end (an interior winner
+/// moves by at most half a pixel).
+pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRange) {
+    let width = disparity.width();
+    let (first, last) = (range.min as f32, (range.max - 1) as f32);
+    let trusted_edge = range.min as f32 + (range.count() / 4) as f32;
+    for row in disparity.as_mut_slice().chunks_exact_mut(width.max(1)) {
+        for (x, d) in row.iter_mut().enumerate() {
+            if d.is_nan() {
+                continue;
+            }
+            let ks = crate::wta::feasible_left(x, width, range);
+            let (lo, hi) = (range.min as f32 + ks.start as f32, range.min as f32 + ks.end as f32 - 1.0);
+            let at_end =
+                *d == first || *d == last || (*d == lo && lo > first) || (*d == hi && hi < trusted_edge);
+            if at_end {
+                *d = tagged_nan(PixelStatus::RangeEnd);
+            }
+        }
+    }
 }
 
 /// Speckle removal, the status image (plain NaNs from here on), the fill, edge snapping and the
@@ -77,5 +114,5 @@ pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params
             weighted_median(&disparity, left, params.wmf_radius, params.wmf_sigma_color, false)
         };
     }
-    SgmOutput { disparity, status, confidence: None }
+    SgmOutput { disparity, status, confidence: None, radiometric_difference: None, intensity_term: false }
 }

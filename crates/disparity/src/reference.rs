@@ -357,6 +357,15 @@ pub(crate) fn sgm_reference_ad(
     let (width, height) = left.size();
     let nd = params.range.count();
     let census_bits = (params.census.width * params.census.height - 1) as u32;
+    let census_only;
+    let params = if crate::sgm::intensity_term(left, right, params).1
+        || params.matching_cost == crate::MatchingCost::Census
+    {
+        params
+    } else {
+        census_only = crate::SgmParams { matching_cost: crate::MatchingCost::Census, ..params.clone() };
+        &census_only
+    };
     let mut census_left = Image::new(width, height, 0u64);
     let mut census_right = Image::new(width, height, 0u64);
     census_transform(left, params.census, &mut census_left);
@@ -383,6 +392,7 @@ pub(crate) fn sgm_reference_ad(
     for (out, costs) in disparity.as_mut_slice().chunks_mut(width).zip(sum.chunks(width * nd)) {
         crate::wta::select_row_reference(costs, width, nd, selection, &mut right_best, out);
     }
+    crate::post::reject_range_ends(&mut disparity, params.range);
     if params.median {
         disparity = crate::filter::median_3x3_reference(&disparity);
     }

@@ -65,6 +65,14 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
             message: format!("{nd} disparities; at most {} are supported", u16::MAX - 1),
         });
     }
+    let (radiometric_difference, intensity_term) = intensity_term(left, right, params);
+    let census_only;
+    let params = if intensity_term || params.matching_cost == MatchingCost::Census {
+        params
+    } else {
+        census_only = SgmParams { matching_cost: MatchingCost::Census, ..params.clone() };
+        &census_only
+    };
     let mut census_left = Image::new(width, height, 0u64);
     let mut census_right = Image::new(width, height, 0u64);
     rayon::join(
@@ -95,7 +103,24 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         }
         output.confidence = Some(confidence);
     }
+    output.radiometric_difference = radiometric_difference;
+    output.intensity_term = intensity_term;
     Ok(output)
+}
+
+/// Whether AD-census keeps its intensity term for this pair, with the measured
+/// [`SgmOutput::radiometric_difference`]. The term only helps while both views render a surface
+/// alike; when they differ (exposure, gamma, vignetting) it misleads, and the cost falls back to
+/// census alone, which no monotonic change of intensity affects.
+pub(crate) fn intensity_term(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> (Option<f32>, bool) {
+    match params.matching_cost {
+        MatchingCost::AdCensus { .. } => {
+            let difference = crate::radiometric::radiometric_difference(left, right, params);
+            let alike = !matches!(difference, Some(d) if d > crate::radiometric::MAX_RADIOMETRIC_DIFFERENCE);
+            (difference, alike)
+        }
+        MatchingCost::Census => (None, false),
+    }
 }
 
 /// Path aggregation (costs computed on the fly from the census images) and winner-takes-all
@@ -121,7 +146,7 @@ pub(crate) fn aggregate_census(
         census_right,
         ad: match (matching_cost, right) {
             (MatchingCost::AdCensus { weight, cap }, Some(right)) => {
-                Some((right, u16::from(weight), u16::from(cap)))
+                Some((left, right, u16::from(weight), u16::from(cap)))
             }
             _ => None,
         },

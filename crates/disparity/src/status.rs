@@ -23,6 +23,10 @@ pub enum PixelStatus {
     Mismatch = 4,
     /// Removed by the speckle filter (part of a small isolated region).
     Speckle = 5,
+    /// The best match lies at an end of the disparities searched for the pixel (the range's
+    /// ends, or the last disparity that stays inside the right image): the true minimum may lie
+    /// outside, so the match is not trusted (these are the "flying points" of a depth map).
+    RangeEnd = 6,
 }
 
 impl PixelStatus {
@@ -34,6 +38,7 @@ impl PixelStatus {
             3 => PixelStatus::Occluded,
             4 => PixelStatus::Mismatch,
             5 => PixelStatus::Speckle,
+            6 => PixelStatus::RangeEnd,
             _ => PixelStatus::NoMatch,
         }
     }

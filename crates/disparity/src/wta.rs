@@ -25,7 +25,7 @@ pub(crate) struct Selection {
 /// The disparity indices `k` (disparity `range.min + k`) for which left pixel `x` has a match
 /// inside a right image `width` pixels wide.
 #[inline]
-fn feasible_left(x: usize, width: usize, range: DisparityRange) -> std::ops::Range<usize> {
+pub(crate) fn feasible_left(x: usize, width: usize, range: DisparityRange) -> std::ops::Range<usize> {
     let (x, w, min, nd) = (x as i64, width as i64, range.min as i64, range.count() as i64);
     let hi = (x - min + 1).clamp(0, nd);
     let lo = (x - (w - 1) - min).clamp(0, hi);

@@ -135,9 +135,26 @@ fn checks_invalidate_without_losing_most_pixels() {
         (block_match(&s.left, &s.right, &strict).unwrap(), block_match(&s.left, &s.right, &loose).unwrap());
     let (w, h) = ds.size();
     let nan = |d: &DisparityMap| d.as_slice().iter().filter(|v| v.is_nan()).count();
-    // Without checks only the border (window does not fit) is invalid...
+    // Without checks only the border (window does not fit) and pixels whose true match lies
+    // outside the searched disparities (winners at a range end) are invalid: the left band,
+    // where the plane's 8 px leave the right image, the occlusions beside the rectangle, and
+    // windows across its edges...
     let r = strict.block_size / 2;
-    assert_eq!(nan(&dl), w * h - (w - 2 * r) * (h - 2 * r));
+    let across_edge = |i: usize| {
+        let (x, y) = ((i % w) as i64, (i / w) as i64);
+        let r = r as i64;
+        (-r..=r).flat_map(|dy| (-r..=r).map(move |dx| (x + dx, y + dy))).any(|(u, v)| {
+            (0..w as i64).contains(&u)
+                && (0..h as i64).contains(&v)
+                && (s.gt[v as usize * w + u as usize] - s.gt[i]).abs() > 1.0
+        })
+    };
+    let unmatchable = |i: usize| s.occluded[i] || i % w < 8 + 2 * r || across_edge(i);
+    for (i, v) in dl.as_slice().iter().enumerate() {
+        let (x, y) = (i % w, i / w);
+        let window_fits = (r..w - r).contains(&x) && (r..h - r).contains(&y);
+        assert!(v.is_nan() != window_fits || (v.is_nan() && unmatchable(i)), "({x}, {y}): {v}");
+    }
     // ...with them, occluded pixels (and a few others) go.
     assert!(nan(&ds) > nan(&dl));
     let occluded_valid = (0..w * h)
