@@ -272,6 +272,24 @@ fn batch_and_calc_warn_about_the_rig_units() {
     assert!(out.join("a.depth.exr").is_file());
     assert_eq!(run.stderr.matches("warning: --baseline 0.2 mm is below 1 mm").count(), 1, "{}", run.stderr);
 
+    // A Middlebury scene's own calib.txt with the baseline in metres: warned once, naming it.
+    let scene = input.join("mb/scene1");
+    fs::create_dir_all(&scene).unwrap();
+    fs::copy(slanted("left.png"), scene.join("im0.png")).unwrap();
+    fs::copy(slanted("right.png"), scene.join("im1.png")).unwrap();
+    fs::write(
+        scene.join("calib.txt"),
+        "cam0=[3000 0 143.5; 0 3000 107.5; 0 0 1]\ncam1=[3000 0 143.5; 0 3000 107.5; 0 0 1]\n\
+         doffs=0\nbaseline=0.08\nwidth=288\nheight=216\nndisp=64\n",
+    )
+    .unwrap();
+    fs::remove_file(input.join("a_left.png")).unwrap();
+    let run = run_in(dir.path(), &["batch", s(&input), "--out", s(&out), "--quiet"]);
+    run.assert_success();
+    assert!(out.join("mb/scene1/im0.depth.exr").is_file());
+    let needle = format!("warning: {}: baseline 0.08 mm is below 1 mm", scene.join("calib.txt").display());
+    assert_eq!(run.stderr.matches(&needle).count(), 1, "{}", run.stderr);
+
     let run = run_in(dir.path(), &["calc", "--baseline", "80", "--focal", "12", "--pixel", "250"]);
     run.assert_success();
     assert!(run.stdout.contains("m"), "{}", run.stdout);
