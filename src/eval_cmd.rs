@@ -24,6 +24,9 @@ struct Report<'a> {
 pub fn run(config: &EvalConfig, out: &mut impl Write) -> Result<()> {
     let est = read_estimate(&config.est).context("cannot read the estimate")?;
     let gt = read_ground_truth(&config.gt, config.gt_scale).context("cannot read the ground truth")?;
+    let metrics = stereo_eval::metrics(&est, &gt)
+        .with_context(|| format!("cannot score {} against {}", config.est.display(), config.gt.display()))?;
+    // Only on success: a failed run prints its one error line alone.
     if !config.gt_scale_given && is_8bit_image(&config.gt) {
         eprintln!(
             "stereo-depth: warning: {}: 8-bit ground truth scored without --gt-scale (so scale 1): 8-bit \
@@ -31,8 +34,6 @@ pub fn run(config: &EvalConfig, out: &mut impl Write) -> Result<()> {
             config.gt.display()
         );
     }
-    let metrics = stereo_eval::metrics(&est, &gt)
-        .with_context(|| format!("cannot score {} against {}", config.est.display(), config.gt.display()))?;
 
     if config.json {
         let report = Report {
