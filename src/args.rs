@@ -151,7 +151,7 @@ pub enum PreviewOfArg {
 /// The pair command: match LEFT against RIGHT and write the depth map.
 #[derive(Debug, Args)]
 pub struct PairArgs {
-    /// Left (reference) image of the rectified pair: PNG, PGM/PPM or JPEG, 8 or 16 bit.
+    /// Left (reference) image of the rectified pair: PNG, PGM/PPM, TIFF or JPEG, 8 or 16 bit.
     #[arg(value_name = "LEFT", required = true)]
     pub left: Option<PathBuf>,
 
@@ -164,6 +164,9 @@ pub struct PairArgs {
 
     #[command(flatten)]
     pub matching: MatchArgs,
+
+    #[command(flatten)]
+    pub depth_limits: DepthLimitArgs,
 
     /// Depth map to write (OpenEXR, channel Z in metres) [default: LEFTSTEM_depth.exr in the
     /// current directory].
@@ -264,6 +267,20 @@ pub struct RigArgs {
     /// Principal point row, pixels [default: image centre]. Needs --cx.
     #[arg(long, value_name = "PX", requires = "cx", allow_negative_numbers = true, help_heading = "Rig")]
     pub cy: Option<f64>,
+}
+
+/// The depth limits, shared by the pair and batch commands (they need a rig).
+#[derive(Debug, Args)]
+pub struct DepthLimitArgs {
+    /// Invalidate pixels nearer than M metres, in every output (depth, disparity, PNGs, points,
+    /// preview, stats); the stats count the pixels cut.
+    #[arg(long, value_name = "M", allow_negative_numbers = true, help_heading = "Depth limits")]
+    pub min_depth: Option<f64>,
+
+    /// Invalidate pixels farther than M metres (and those without a finite depth), in every
+    /// output, like --min-depth.
+    #[arg(long, value_name = "M", allow_negative_numbers = true, help_heading = "Depth limits")]
+    pub max_depth: Option<f64>,
 }
 
 /// The matcher flags, shared by the pair and batch commands.
@@ -475,9 +492,10 @@ pub struct EvalArgs {
     pub gt: PathBuf,
 
     /// Ground-truth disparity = stored value / S (PNG/PGM: Middlebury 2003 uses 4, KITTI 256;
-    /// applied to PFM too, like stereo_eval.py).
-    #[arg(long, value_name = "S", default_value_t = 1.0, allow_negative_numbers = true)]
-    pub gt_scale: f32,
+    /// applied to PFM too, like stereo_eval.py) [default: 1; an 8-bit image ground truth without
+    /// it is warned about].
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub gt_scale: Option<f32>,
 
     /// Print the metrics as JSON instead of a table.
     #[arg(long)]
@@ -503,7 +521,7 @@ pub struct EvalFolderArgs {
 
 const BATCH_AFTER_HELP: &str = "\
 Pairs are found by walking INPUT_DIR (hidden files and OUT_DIR are skipped; images are .png, .pgm, \
-.ppm, .pnm, .jpg, .jpeg) in these layouts, all at once and at any depth:
+.ppm, .pnm, .tif, .tiff, .jpg, .jpeg) in these layouts, all at once and at any depth:
   DIR/left/NAME    + DIR/right/NAME        -> OUT_DIR/DIR/STEM.*   (also image_0/image_1)
   DIR/image_2/NAME + DIR/image_3/NAME      -> OUT_DIR/DIR/STEM.*   (KITTI, e.g. 000000_10.png)
   DIR/NAME_left.EXT + DIR/NAME_right.EXT   -> OUT_DIR/DIR/NAME.*   (also _L/_R)
@@ -552,6 +570,9 @@ pub struct BatchArgs {
 
     #[command(flatten)]
     pub matching: MatchArgs,
+
+    #[command(flatten)]
+    pub depth_limits: DepthLimitArgs,
 
     /// Also write each pair's disparity map as STEM.disparity.pfm.
     #[arg(long, help_heading = "Output")]

@@ -160,6 +160,10 @@ pub fn run(args: CalcArgs, out: &mut impl Write) -> Result<()> {
         })?),
     };
     let design = Design::new(&args.input()).map_err(usage)?;
+    crate::checks::print_warnings(&crate::checks::rig_warnings(
+        Some((args.baseline, crate::checks::BaselineSource::Flag)),
+        Some(args.pixel),
+    ));
 
     if let (Some(path), Some(format)) = (&args.chart, chart_format) {
         let bytes = stereo_chart::render(&chart(&design), format, stereo_chart::DEFAULT_SIZE)

@@ -10,9 +10,10 @@ use stereo_triangulation::Rig;
 use stereo_io::Calib;
 
 use crate::args::{
-    BatchArgs, BatchMergeArgs, BmCostArg, EvalArgs, MatchArgs, MatcherArg, PairArgs, PathsArg, PresetArg,
-    PreviewOfArg, RigArgs, SubpixelArg,
+    BatchArgs, BatchMergeArgs, BmCostArg, DepthLimitArgs, EvalArgs, MatchArgs, MatcherArg, PairArgs,
+    PathsArg, PresetArg, PreviewOfArg, RigArgs, SubpixelArg,
 };
+use crate::checks::{self, BaselineSource, DepthLimits};
 use crate::discover::{Pattern, Shard};
 
 /// An invalid argument: reported like clap's own errors, with exit status 2.
@@ -143,6 +144,16 @@ impl RigFlags {
             }
         }
         Ok(flags)
+    }
+
+    /// Unit-mistake warnings for the rig flags and the --calib file (see [`checks::rig_warnings`]).
+    pub fn warnings(&self) -> Vec<String> {
+        let baseline = match (self.baseline_mm, &self.calib, &self.calib_path) {
+            (Some(mm), ..) => Some((mm, BaselineSource::Flag)),
+            (None, Some(calib), Some(path)) => calib.baseline_mm.map(|mm| (mm, BaselineSource::Calib(path))),
+            _ => None,
+        };
+        checks::rig_warnings(baseline, self.pixel_um)
     }
 
     /// Whether any flag that describes the rig was given.
@@ -370,12 +381,18 @@ pub struct PairConfig {
     pub expected_size: Option<(usize, usize)>,
     pub limits: Limits,
     pub extras: MatchExtras,
+    /// `--min-depth`/`--max-depth` (only with a rig).
+    pub depth_limits: Option<DepthLimits>,
 }
 
 impl PairConfig {
     pub fn from_args(args: PairArgs) -> anyhow::Result<Self> {
         let flags = RigFlags::from_args(&args.rig)?;
-        Ok(PairConfig::from_flags(args, flags)?)
+        let warnings = flags.warnings();
+        let config = PairConfig::from_flags(args, flags)?;
+        // Only once the arguments are known to be valid: a usage error stays one line.
+        checks::print_warnings(&warnings);
+        Ok(config)
     }
 
     fn from_flags(args: PairArgs, flags: RigFlags) -> Result<Self, UsageError> {
@@ -387,6 +404,14 @@ impl PairConfig {
         let right = args.right.ok_or_else(|| required("RIGHT"))?;
         let rig = if flags.any() { Some(flags.resolve(None)?) } else { None };
         let settings = MatchSettings::from_args(&args.matching)?;
+        let depth_limits = depth_limits(&args.depth_limits)?;
+        if let (Some(limits), None) = (&depth_limits, &rig) {
+            return Err(usage!(
+                "{} needs a rig: give --baseline and the focal length (--focal and --pixel, --focal-px, \
+                 or --calib)",
+                limits.flag()
+            ));
+        }
         let preview_of = match args.preview_of {
             Some(PreviewOfArg::Disparity) => PreviewOf::Disparity,
             Some(PreviewOfArg::Depth) | None => PreviewOf::Depth,
@@ -444,6 +469,7 @@ impl PairConfig {
             expected_size: calib.and_then(|c| Some((c.width?, c.height?))),
             limits: settings.limits,
             extras: settings.extras,
+            depth_limits,
         };
         config.check_paths()?;
         Ok(config)
@@ -516,6 +542,10 @@ impl PairConfig {
         }
         Ok(())
     }
+}
+
+fn depth_limits(args: &DepthLimitArgs) -> Result<Option<DepthLimits>, UsageError> {
+    DepthLimits::new(args.min_depth, args.max_depth)
 }
 
 /// `path` made absolute with `..`, `.` and symbolic links of its folder resolved (the folder
@@ -674,6 +704,7 @@ pub struct BatchConfig {
     /// Pairs in flight.
     pub jobs: usize,
     pub threads: Option<u16>,
+    pub depth_limits: Option<DepthLimits>,
 }
 
 impl BatchConfig {
@@ -693,8 +724,11 @@ impl BatchConfig {
             Some(text) => Some(Shard::parse(text).map_err(|err| usage!("invalid --shard {text:?}: {err}"))?),
             None => None,
         };
+        let depth_limits = depth_limits(&args.depth_limits)?;
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let jobs = args.jobs.map_or(cores.min(2), usize::from);
+        // The rig flags and --calib; the pairs' own calib.txt files are read as the pairs run.
+        checks::print_warnings(&rig.warnings());
         Ok(BatchConfig {
             input: args.input,
             out: args.out,
@@ -718,6 +752,7 @@ impl BatchConfig {
             shard,
             jobs,
             threads: args.threads,
+            depth_limits,
         })
     }
 }
@@ -740,15 +775,24 @@ pub struct EvalConfig {
     pub est: PathBuf,
     pub gt: PathBuf,
     pub gt_scale: f32,
+    /// Whether --gt-scale was given (an 8-bit ground truth without it is warned about).
+    pub gt_scale_given: bool,
     pub json: bool,
 }
 
 impl EvalConfig {
     pub fn from_args(args: EvalArgs) -> Result<Self, UsageError> {
-        if !(args.gt_scale.is_finite() && args.gt_scale > 0.0) {
-            return Err(usage!("--gt-scale must be a positive number, got {}", args.gt_scale));
+        let gt_scale = args.gt_scale.unwrap_or(1.0);
+        if !(gt_scale.is_finite() && gt_scale > 0.0) {
+            return Err(usage!("--gt-scale must be a positive number, got {gt_scale}"));
         }
-        Ok(EvalConfig { est: args.est, gt: args.gt, gt_scale: args.gt_scale, json: args.json })
+        Ok(EvalConfig {
+            est: args.est,
+            gt: args.gt,
+            gt_scale,
+            gt_scale_given: args.gt_scale.is_some(),
+            json: args.json,
+        })
     }
 }
 

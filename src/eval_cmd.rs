@@ -26,6 +26,14 @@ pub fn run(config: &EvalConfig, out: &mut impl Write) -> Result<()> {
     let gt = read_ground_truth(&config.gt, config.gt_scale).context("cannot read the ground truth")?;
     let metrics = stereo_eval::metrics(&est, &gt)
         .with_context(|| format!("cannot score {} against {}", config.est.display(), config.gt.display()))?;
+    // Only on success: a failed run prints its one error line alone.
+    if !config.gt_scale_given && is_8bit_image(&config.gt) {
+        eprintln!(
+            "stereo-depth: warning: {}: 8-bit ground truth scored without --gt-scale (so scale 1): 8-bit \
+             disparity images usually store disparity x a scale (Middlebury 2003: --gt-scale 4)",
+            config.gt.display()
+        );
+    }
 
     if config.json {
         let report = Report {
@@ -67,6 +75,13 @@ fn read_estimate(path: &Path) -> Result<DisparityMap> {
         }
     }
     Ok(map)
+}
+
+/// Whether `path` is an 8-bit integer image (PNG, PGM, TIFF), from its header (only read once the
+/// ground truth has decoded; an unreadable header gives no warning rather than an error).
+fn is_8bit_image(path: &Path) -> bool {
+    let is_pfm = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("pfm"));
+    !is_pfm && stereo_io::probe_image(path).is_ok_and(|header| header.bits_per_channel == 8)
 }
 
 /// Ground truth: `stored value / scale`, unknown (0 in PNG/PGM; non-finite or <= 0 in PFM) as

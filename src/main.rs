@@ -7,6 +7,7 @@
 mod args;
 mod batch;
 mod calc;
+mod checks;
 mod config;
 mod discover;
 mod eval_cmd;

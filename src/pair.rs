@@ -82,10 +82,18 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     }
 
     let t = Instant::now();
-    let (disparity, confidence) =
+    let (mut disparity, confidence) =
         run_matcher(&matcher, &left, &right, &config.left, config.extras.min_confidence)?;
     let match_time = t.elapsed();
     drop((left, right));
+    // Cut once here, so every output below (depth, disparity, PNGs, points, preview, stats)
+    // agrees on which pixels are valid.
+    let depth_limits = match (&config.depth_limits, &config.rig) {
+        (Some(limits), Some(setup)) => {
+            Some(limits.report(&setup.rig, limits.apply(&mut disparity, &setup.rig)))
+        }
+        _ => None,
+    };
 
     let t = Instant::now();
     let depth = config.rig.as_ref().map(|setup| stereo_triangulation::depth_map(&disparity, &setup.rig));
@@ -205,6 +213,7 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
         rig: config.rig.as_ref().map(|setup| RigReport::new(setup, width, height)),
         points_written,
         depth_png_too_deep,
+        depth_limits,
         timings_ms: Timings {
             load: report::ms(load),
             match_: report::ms(match_time),

@@ -8,6 +8,7 @@ use serde::Serialize;
 use stereo_disparity::{BmCost, PathCount, Subpixel};
 use stereo_triangulation::{DepthStats, DisparityStats};
 
+use crate::checks::DepthLimitsReport;
 use crate::config::{Matcher, RigSetup};
 
 /// The `--stats` document. Depths are in metres, disparities in pixels, times in milliseconds;
@@ -35,6 +36,8 @@ pub struct Stats {
     pub points_written: Option<usize>,
     /// Valid depths beyond 65.535 m written as 0 in the --depth-png.
     pub depth_png_too_deep: Option<usize>,
+    /// --min-depth/--max-depth, their disparity interval and the pixels they cut.
+    pub depth_limits: Option<DepthLimitsReport>,
     pub timings_ms: Timings,
     /// Million disparity evaluations per second of the matching stage: W·H·ndisp / seconds / 1e6.
     pub mde_per_s: f64,
@@ -289,6 +292,10 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
     }
     if let Some(d) = &stats.disparity_px {
         writeln!(out, "disparity px  min {:.2}  median {:.2}  max {:.2}", d.min, d.median, d.max)?;
+    }
+    if let Some(l) = &stats.depth_limits {
+        let m = |v: Option<f64>| v.map_or_else(|| "-".to_string(), |v| format!("{v}"));
+        writeln!(out, "depth limits  {} .. {} m: {} px cut", m(l.min_m), m(l.max_m), l.cut_pixels)?;
     }
     let t = &stats.timings_ms;
     writeln!(

@@ -13,6 +13,7 @@
 
 pub mod summary;
 
+use std::collections::BTreeSet;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -23,6 +24,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
+use crate::checks;
 use crate::config::{BatchConfig, BatchMergeConfig, PairConfig, UsageError};
 use crate::discover::{self, PairSpec};
 use crate::pair;
@@ -117,6 +119,7 @@ pub fn run(config: &BatchConfig, out: &mut impl Write) -> Result<ExitCode> {
     }
 
     warn_unpaired(&found.unpaired);
+    warn_calib_units(config, &jobs);
     if found.pairs.is_empty() {
         eprintln!("stereo-depth: warning: no stereo pairs found in {}", config.input.display());
     }
@@ -292,8 +295,26 @@ fn process(config: &BatchConfig, job: &Job) -> Result<Stats> {
         expected_size: calib.and_then(|c| Some((c.width?, c.height?))),
         limits: settings.limits,
         extras: settings.extras,
+        depth_limits: config.depth_limits,
     };
     pair::process(&pair)
+}
+
+/// The unit-mistake warnings of the scenes' own calib.txt files where they give the baseline (no
+/// --baseline or --calib), once per file before the work starts. A file that cannot be read is
+/// left to fail its pair.
+fn warn_calib_units(config: &BatchConfig, jobs: &[Job]) {
+    if config.rig.baseline_mm.is_some() || config.rig.calib.is_some() {
+        return;
+    }
+    let files: BTreeSet<&str> = jobs.iter().filter_map(|job| job.spec.calib.as_deref()).collect();
+    for file in files {
+        let path = config.input.join(file);
+        if let Ok(calib) = stereo_io::read_calib(&path) {
+            let baseline = calib.baseline_mm.map(|mm| (mm, checks::BaselineSource::Calib(&path)));
+            checks::print_warnings(&checks::rig_warnings(baseline, None));
+        }
+    }
 }
 
 /// Removes the temporary files an interrupted run left beside `path` (`.NAME.tmp-PID-N`, see

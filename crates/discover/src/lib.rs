@@ -16,7 +16,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
 
 /// Extensions (lower case) of the images the program reads.
-pub const IMAGE_EXTENSIONS: [&str; 6] = ["png", "pgm", "ppm", "pnm", "jpg", "jpeg"];
+pub const IMAGE_EXTENSIONS: [&str; 8] = ["png", "pgm", "ppm", "pnm", "tif", "tiff", "jpg", "jpeg"];
 
 /// Which layout a pair was found in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -82,9 +82,9 @@ pub(crate) fn io_err(path: &Path) -> impl Fn(std::io::Error) -> Error + '_ {
 }
 
 /// Reads a ground-truth disparity map: PFM as stored (non-finite and <= 0 are unknown), or an
-/// 8/16-bit PNG/PGM with `disparity = value / scale` and 0 unknown. Unknown pixels become NaN.
+/// 8/16-bit PNG/PGM/TIFF with `disparity = value / scale` and 0 unknown. Unknown pixels become NaN.
 ///
-/// The format is chosen by extension (`.pfm`; `.png`, `.pgm`, `.ppm`); colour images are accepted
+/// The format is chosen by extension (`.pfm`; `.png`, `.pgm`, `.ppm`, `.tif`, `.tiff`); colour images are accepted
 /// only when all channels are equal. `scale` must be finite and > 0 (it is not applied to PFM).
 pub fn read_disparity(path: &Path, scale: f32) -> Result<DisparityMap, Error> {
     if !(scale.is_finite() && scale > 0.0) {
@@ -101,13 +101,13 @@ pub fn read_disparity(path: &Path, scale: f32) -> Result<DisparityMap, Error> {
             }
             Ok(map)
         }
-        Some("png" | "pgm" | "ppm") => {
+        Some("png" | "pgm" | "ppm" | "tif" | "tiff") => {
             let raw = raster::load_disparity_samples(path)?;
             let data =
                 raw.as_slice().iter().map(|&v| if v == 0 { f32::NAN } else { v as f32 / scale }).collect();
             let (w, h) = raw.size();
             DisparityMap::from_vec(w, h, data).map_err(|e| format_err(path, e.to_string()))
         }
-        _ => Err(format_err(path, "unknown disparity format (want a .pfm, .png or .pgm file)")),
+        _ => Err(format_err(path, "unknown disparity format (want a .pfm, .png, .pgm or .tif file)")),
     }
 }

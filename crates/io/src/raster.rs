@@ -1,4 +1,4 @@
-//! Decoding PNG / PNM / JPEG images with the `image` crate.
+//! Decoding PNG / PNM / TIFF / JPEG images with the `image` crate.
 
 use std::fs::File;
 use std::io::{BufRead, BufReader, Cursor, Seek, SeekFrom};
@@ -46,6 +46,7 @@ fn extension_format(path: &Path) -> Option<&'static str> {
         "png" => "PNG",
         "pgm" | "ppm" | "pbm" | "pnm" | "pam" => "PNM",
         "jpg" | "jpeg" => "JPEG",
+        "tif" | "tiff" => "TIFF",
         _ => return None,
     })
 }
@@ -63,7 +64,7 @@ pub struct ImageHeader {
     pub bytes_per_pixel: usize,
     /// Bits per channel: 8 or 16 (32 for float images).
     pub bits_per_channel: usize,
-    /// `"PNG"`, `"PNM"` or `"JPEG"`.
+    /// `"PNG"`, `"PNM"`, `"TIFF"` or `"JPEG"`.
     pub format: &'static str,
 }
 
@@ -102,7 +103,7 @@ fn guessed(path: &Path, format: Option<ImageFormat>) -> Result<&'static str, Err
             path,
             match extension_format(path) {
                 Some(name) => format!("not a {name} image (unrecognised format)"),
-                None => "not an image (unrecognised format; want PNG, PNM or JPEG)".to_string(),
+                None => "not an image (unrecognised format; want PNG, PNM, TIFF or JPEG)".to_string(),
             },
         )),
     }
@@ -111,7 +112,7 @@ fn guessed(path: &Path, format: Option<ImageFormat>) -> Result<&'static str, Err
 fn decode_error(path: &Path, name: &str, e: ImageError) -> Error {
     match e {
         ImageError::Unsupported(e) => {
-            format_err(path, format!("unsupported {name} image ({e}); want PNG, PNM or JPEG"))
+            format_err(path, format!("unsupported {name} image ({e}); want PNG, PNM, TIFF or JPEG"))
         }
         ImageError::Limits(e) => format_err(path, format!("{name} image too large ({e})")),
         ImageError::IoError(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => {
@@ -204,6 +205,7 @@ fn format_of(name: &str) -> ImageFormat {
     match name {
         "PNG" => ImageFormat::Png,
         "PNM" => ImageFormat::Pnm,
+        "TIFF" => ImageFormat::Tiff,
         _ => ImageFormat::Jpeg,
     }
 }
@@ -234,7 +236,7 @@ fn check_jpeg_end(path: &Path, bytes: &[u8]) -> Result<(), Error> {
     }
 }
 
-/// Decodes image bytes (PNG, PNM or JPEG, detected from the content) as [`load_gray`] does a
+/// Decodes image bytes (PNG, PNM, TIFF or JPEG, detected from the content) as [`load_gray`] does a
 /// file, refusing more than `max_pixels` pixels before decoding; errors name `name`.
 pub fn decode_gray(bytes: &[u8], name: &Path, max_pixels: u64) -> Result<GrayImage, Error> {
     if bytes.is_empty() {
@@ -253,7 +255,8 @@ fn format_name(format: ImageFormat) -> &'static str {
         ImageFormat::Png => "PNG",
         ImageFormat::Pnm => "PNM",
         ImageFormat::Jpeg => "JPEG",
-        // The crate is built with these three formats only.
+        ImageFormat::Tiff => "TIFF",
+        // The crate is built with these four formats only.
         _ => "unsupported",
     }
 }
@@ -269,7 +272,7 @@ fn collect<P, T: Copy>(
     Image::from_vec(width as usize, height as usize, data).map_err(|e| format_err(path, e.to_string()))
 }
 
-/// Loads any 8/16-bit grey, grey+alpha, RGB or RGBA image (PNG, PNM or JPEG, detected from the
+/// Loads any 8/16-bit grey, grey+alpha, RGB or RGBA image (PNG, PNM, TIFF or JPEG, detected from the
 /// content) as the working 16-bit grey image: 8-bit values scaled by 257; colour converted with
 /// Rec. 601 luma weights (0.299, 0.587, 0.114), rounded; 16-bit precision kept; alpha ignored.
 /// Float images are clamped to `[0, 1]` and scaled to 65535.

@@ -401,6 +401,33 @@ mod tests {
     }
 
     #[test]
+    fn no_depth_or_point_where_d_plus_doffs_is_not_positive() {
+        // A negative doffs puts small positive disparities behind the camera: d = 7 and d = 8
+        // (d + doffs = -1 and 0) and d = 4 have no depth, in the map nor as points.
+        let rig = Rig::from_focal_px(80.0, 3000.0).unwrap().with_doffs(-8.0).unwrap();
+        let d = DisparityMap::from_vec(4, 1, vec![7.0, 8.0, 9.0, 4.0]).unwrap();
+        assert_eq!((rig.depth(7.0), rig.depth(8.0), rig.depth(4.0)), (None, None, None));
+        let z = depth_map(&d, &rig);
+        assert!(z.get(0, 0).is_nan() && z.get(1, 0).is_nan() && z.get(3, 0).is_nan());
+        // 80 · 3000 / (9 - 8) / 1000 = 240 m.
+        assert!(close(f64::from(z.get(2, 0)), 240.0, 1e-6));
+        let points = points(&d, &rig, 1);
+        assert_eq!(points.iter().map(|p| p.x).collect::<Vec<_>>(), [2]);
+        assert!(points.iter().all(|p| p.position.z.is_finite() && p.position.z > 0.0));
+        // A tiny positive d + doffs gives a huge but finite depth; one beyond f32 is NaN in the
+        // map, never infinite.
+        let rig = Rig::from_focal_px(80.0, 3000.0).unwrap().with_doffs(-1.0).unwrap();
+        let d = DisparityMap::from_vec(1, 1, vec![1.0 + f32::EPSILON]).unwrap();
+        let far = rig.depth(f64::from(1.0 + f32::EPSILON)).unwrap();
+        assert!(far > 1e8 && far.is_finite(), "{far}");
+        assert!(depth_map(&d, &rig).get(0, 0) > 1e8);
+        let d = DisparityMap::from_vec(1, 1, vec![f32::MIN_POSITIVE]).unwrap();
+        let rig = Rig::from_focal_px(80.0, 3000.0).unwrap();
+        assert!(rig.depth(f64::from(f32::MIN_POSITIVE)).is_some(), "finite in f64");
+        assert!(depth_map(&d, &rig).get(0, 0).is_nan(), "but infinite in f32");
+    }
+
+    #[test]
     fn depth_map_on_many_rows_matches_rig_depth() {
         let rig = Rig::from_datasheet(200.0, 6.0, 2.5).unwrap().with_doffs(1.5).unwrap();
         let d = DisparityMap::from_fn(37, 53, |x, y| (x * 7 + y * 3) as f32 - 20.0);
