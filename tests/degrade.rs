@@ -25,8 +25,10 @@ fn gain_on_the_right_view_leaves_the_left_untouched() {
     assert_eq!(run.printed_path("right"), Some(out.join("right.png")));
 
     // 16-bit grey in, 16-bit grey out; the left view byte-for-byte the input.
-    let left = read(&out.join("left.png"));
-    let DynamicImage::ImageLuma16(left) = left else { panic!("left is {:?}, want L16", left.color()) };
+    let left = match read(&out.join("left.png")) {
+        DynamicImage::ImageLuma16(left) => left,
+        other => panic!("left is {:?}, want L16", other.color()),
+    };
     assert_eq!(left.as_raw().as_slice(), scene.left.as_slice());
 
     let right = read(&out.join("right.png")).into_luma16();
