@@ -156,7 +156,7 @@ pub fn jpeg(planes: &mut [Vec<f32>], width: usize, height: usize, quality: u8) -
     let mut bytes = vec![0u8; width * height * channels];
     for (c, plane) in planes.iter().enumerate() {
         for (i, &v) in plane.iter().enumerate() {
-            bytes[i * channels + c] = (v.max(0.0).min(1.0) * 255.0).round() as u8;
+            bytes[i * channels + c] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
         }
     }
     let colour = if channels == 1 { ExtendedColorType::L8 } else { ExtendedColorType::Rgb8 };

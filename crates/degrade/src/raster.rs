@@ -188,8 +188,8 @@ impl Raster {
         let mut data = vec![0u16; width * height * channels];
         for (c, plane) in planes.iter().enumerate() {
             for (i, &v) in plane.iter().enumerate() {
-                // NaN cannot arise from the stages, but `clamp` would keep it; `max(0)` maps it to 0.
-                data[i * channels + c] = (v.max(0.0).min(1.0) * max).round() as u16;
+                // A NaN (which no stage produces) would end as 0: float-to-int casts saturate.
+                data[i * channels + c] = (v.clamp(0.0, 1.0) * max).round() as u16;
             }
         }
         Raster { width, height, channels, depth, data }
