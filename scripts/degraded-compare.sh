@@ -14,6 +14,7 @@
 #   CACHE=dir                       OpenCV results cache (default /tmp/degraded-compare-cache)
 #   WORK=dir                        degraded pairs, disparities, results.tsv
 #                                   (default /tmp/degraded-compare)
+#   TSV=path                        results TSV (default $WORK/results.tsv)
 #   SEED=N                          noise seed of the degrade command (default 1)
 #   TOOL=path                       stereo_eval.py (default ../shared/tools/opencv-compare/)
 #
@@ -66,7 +67,7 @@ PY="$(bash "$(dirname "$TOOL")/setup.sh" 2>/dev/null | tail -1)"
 ALL_SCENES="$(awk -F'\t' 'NR > 1 { print $1 }' "$DATA/scenes.tsv")"
 SCENES="${SCENES:-$ALL_SCENES}"
 mkdir -p "$CACHE" "$WORK"
-TSV="$WORK/results.tsv"
+TSV="${TSV:-$WORK/results.tsv}"
 printf 'scene\tdegradation\tspec\tours_default_bad2\tours_fill_bad2\topencv_bad2\topencv_mode\n' >"$TSV"
 echo "ours: $BIN LEFT RIGHT --max-disparity NDISP $OURS_FLAGS [--fill]; work in $WORK, cache in $CACHE" >&2
 

@@ -23,11 +23,14 @@ def best_opencv(colour_path, grey_path):
         with open(path) as f:
             doc = json.load(f)
         for r in doc["results"]:
-            if r["matcher"] not in SGBM_MODES:
+            # Matcher names carry prefixes and suffixes ("SGBM-HH-grey"); the mode is in the
+            # parameters, and StereoBM has none.
+            mode = r.get("params", {}).get("mode")
+            if mode not in SGBM_MODES:
                 continue
             bad2 = r["metrics"]["bad2"]
             if best is None or bad2 < best[0]:
-                best = (bad2, f"{r['matcher']} ({label})")
+                best = (bad2, f"{mode} {label}")
     if best is None:
         sys.exit(f"no StereoSGBM result in {colour_path} or {grey_path}")
     print(f"{best[0]:.4f}\t{best[1]}")
