@@ -128,6 +128,9 @@ pub enum Command {
     Calc(crate::calc::CalcArgs),
     /// Print what a file stereo-depth writes contains: EXR, PFM, PNG, PLY or stats JSON.
     Info(InfoArgs),
+    /// Write a degraded copy of a pair (gain, gamma, bias, vignetting, noise, JPEG, blur, vertical
+    /// shift, rotation) for robustness measurements.
+    Degrade(crate::degrade_cmd::DegradeArgs),
 }
 
 /// `stereo-depth info FILE`.

@@ -9,6 +9,7 @@ mod batch;
 mod calc;
 mod checks;
 mod config;
+mod degrade_cmd;
 mod discover;
 mod eval_cmd;
 mod eval_folder;
@@ -67,6 +68,10 @@ fn run() -> anyhow::Result<ExitCode> {
         }
         Some(Command::Calc(args)) => calc::run(args, &mut stdout)?,
         Some(Command::Info(args)) => info::run(&args.file, &mut stdout)?,
+        Some(Command::Degrade(args)) => {
+            let config = degrade_cmd::DegradeConfig::from_args(args)?;
+            degrade_cmd::run(&config, &mut stdout)?;
+        }
         Some(Command::EvalFolder(args)) => eval_folder::run(&args, &mut stdout)?,
         Some(Command::Eval(args)) => {
             let config = EvalConfig::from_args(args)?;
