@@ -370,6 +370,8 @@ pub struct PairConfig {
     pub expected_size: Option<(usize, usize)>,
     pub limits: Limits,
     pub extras: MatchExtras,
+    /// Compensate a measured vertical misalignment of the right view before matching.
+    pub align: bool,
 }
 
 impl PairConfig {
@@ -444,6 +446,7 @@ impl PairConfig {
             expected_size: calib.and_then(|c| Some((c.width?, c.height?))),
             limits: settings.limits,
             extras: settings.extras,
+            align: !args.no_align,
         };
         config.check_paths()?;
         Ok(config)

@@ -292,6 +292,7 @@ fn process(config: &BatchConfig, job: &Job) -> Result<Stats> {
         expected_size: calib.and_then(|c| Some((c.width?, c.height?))),
         limits: settings.limits,
         extras: settings.extras,
+        align: true,
     };
     pair::process(&pair)
 }
