@@ -305,7 +305,7 @@ fn select_patches(half: &Plane) -> Vec<(usize, usize)> {
     let [xx, yy, xy] =
         [0, 1, 2].map(|k| Integral::from_values(width, height, |x, y| products[y * width + x][k] as f64));
     // The full-resolution patch is about 8×8 half-resolution pixels.
-    const R: usize = (RADIUS + 1) / 2;
+    const R: usize = RADIUS.div_ceil(2);
     let n = ((2 * R) * (2 * R)) as f64;
     let structure = |x: usize, y: usize| {
         let (x0, y0, x1, y1) = (x - R, y - R, x + R, y + R);
@@ -540,11 +540,8 @@ fn refine(left: &Plane, right: &Plane, x: usize, y: usize, xr: i32, dy: i32) -> 
                 }
             }
         }
-        for a in 0..4 {
-            for b in 0..a {
-                h[a][b] = h[b][a];
-            }
-        }
+        // Only the upper triangle was summed.
+        let h = std::array::from_fn(|a| std::array::from_fn(|b| h[a.min(b)][a.max(b)]));
         let step = solve4(h, g)?;
         u += step[0];
         v += step[1];
@@ -592,10 +589,11 @@ fn solve4(mut h: [[f64; 4]; 4], mut g: [f64; 4]) -> Option<[f64; 4]> {
         }
         h.swap(col, pivot);
         g.swap(col, pivot);
+        let pivot_row = h[col];
         for row in col + 1..4 {
-            let f = h[row][col] / h[col][col];
-            for k in col..4 {
-                h[row][k] -= f * h[col][k];
+            let f = h[row][col] / pivot_row[col];
+            for (target, &p) in h[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                *target -= f * p;
             }
             g[row] -= f * g[col];
         }

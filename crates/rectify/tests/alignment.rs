@@ -39,11 +39,6 @@ impl Texture {
     }
 }
 
-/// The disparity of the test scene at left column `x`: a slanted plane, 10 to about 32 px.
-fn disparity(x: f64) -> f64 {
-    10.0 + 0.05 * x
-}
-
 /// A pair whose right view is `shift` px lower and rotated `rotation_deg` about the centre
 /// (positive: its right side lower), with `photometric` applied to the right view's grey values.
 fn pair(shift: f64, rotation_deg: f64, photometric: impl Fn(f64) -> f64) -> (GrayImage, GrayImage) {
@@ -55,7 +50,8 @@ fn pair(shift: f64, rotation_deg: f64, photometric: impl Fn(f64) -> f64) -> (Gra
         // Undo the rotation and the shift: the ideal right view's point.
         let (px, py) = (x as f64 - cx, y as f64 - cy);
         let (qx, qy) = (cos * px + sin * py + cx, -sin * px + cos * py + cy - shift);
-        // The ideal right pixel qx shows the left point u with u − disparity(u) = qx.
+        // A slanted plane, disparity 10 + 0.05·u (10 to about 32 px): the ideal right pixel qx
+        // shows the left point u with u − (10 + 0.05·u) = qx.
         let u = (qx + 10.0) / 0.95;
         photometric(texture.value(u, qy)).round().clamp(0.0, 65535.0) as u16
     });
