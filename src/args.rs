@@ -182,8 +182,10 @@ pub struct PairArgs {
 
     /// Also write statistics as JSON: width, height, valid_pixels, density_percent, depth_m and
     /// disparity_px (min, max, mean, median, p5, p95), matcher (name and parameters), rig
-    /// (baseline_mm, focal_mm, pixel_um, focal_px, doffs, principal_point), timings_ms (load,
-    /// match, triangulate, write, total) and mde_per_s (W·H·ndisp per second of matching / 1e6).
+    /// (baseline_mm, focal_mm, pixel_um, focal_px, doffs, principal_point), rectification
+    /// (vertical_offset_px, rotation_deg, max_abs_offset_px, verdict, compensated), timings_ms
+    /// (load, rectification, match, triangulate, write, total) and mde_per_s (W·H·ndisp per
+    /// second of matching / 1e6).
     #[arg(long, value_name = "PATH.json", help_heading = "Output")]
     pub stats: Option<PathBuf>,
 
@@ -220,6 +222,11 @@ pub struct PairArgs {
     /// Print only the paths written, not the summary.
     #[arg(short, long, help_heading = "Output")]
     pub quiet: bool,
+
+    /// Do not resample the right view when its rows are measured off the left view's (a
+    /// vertical offset or rotation left by the rectification); the check is still reported.
+    #[arg(long, help_heading = "Matching")]
+    pub no_align: bool,
 
     /// Worker threads [default: one per core].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]

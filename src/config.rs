@@ -383,6 +383,8 @@ pub struct PairConfig {
     pub extras: MatchExtras,
     /// `--min-depth`/`--max-depth` (only with a rig).
     pub depth_limits: Option<DepthLimits>,
+    /// Compensate a measured vertical misalignment of the right view before matching.
+    pub align: bool,
 }
 
 impl PairConfig {
@@ -470,6 +472,7 @@ impl PairConfig {
             limits: settings.limits,
             extras: settings.extras,
             depth_limits,
+            align: !args.no_align,
         };
         config.check_paths()?;
         Ok(config)

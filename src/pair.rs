@@ -12,7 +12,9 @@ use stereo_disparity::{block_match, sgm, sgm_detailed, DisparityMap, GrayImage, 
 
 use crate::config::{Matcher, PairConfig, PreviewOf, UsageError};
 use crate::limits;
-use crate::report::{self, DepthResolution, MatcherReport, Outputs, RigReport, Stats, Summary, Timings};
+use crate::report::{
+    self, DepthResolution, MatcherReport, Outputs, RectificationReport, RigReport, Stats, Summary, Timings,
+};
 use stereo_triangulation::{DepthStats, DisparityStats};
 
 pub fn run(config: &PairConfig, out: &mut impl Write) -> Result<()> {
@@ -80,6 +82,10 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
             bail!("{} changed while it was being read", path.display());
         }
     }
+
+    let t = Instant::now();
+    let (right, rectification) = check_rectification(config, &left, right, range);
+    let rectification_time = t.elapsed();
 
     let t = Instant::now();
     let (mut disparity, confidence) =
@@ -214,8 +220,10 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
         points_written,
         depth_png_too_deep,
         depth_limits,
+        rectification,
         timings_ms: Timings {
             load: report::ms(load),
+            rectification: report::ms(rectification_time),
             match_: report::ms(match_time),
             triangulate: report::ms(triangulate),
             write: report::ms(write),
@@ -235,6 +243,44 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     }
     written.commit();
     Ok(stats)
+}
+
+/// Measures how well the rows of the pair line up; resamples the right view when they do not
+/// (unless `--no-align`), so clean pairs are matched exactly as loaded. Warns (one line each)
+/// about an offset above half a pixel and about a pair that looks swapped.
+fn check_rectification(
+    config: &PairConfig,
+    left: &GrayImage,
+    right: GrayImage,
+    range: stereo_disparity::DisparityRange,
+) -> (GrayImage, RectificationReport) {
+    use stereo_rectify::AlignmentVerdict;
+    let alignment = stereo_rectify::estimate_alignment(left, &right, range);
+    let misaligned =
+        matches!(alignment.verdict, AlignmentVerdict::Misaligned | AlignmentVerdict::BadlyMisaligned);
+    let compensated = misaligned && config.align;
+    let (left_name, right_name) = (config.left.display(), config.right.display());
+    if misaligned && alignment.max_abs_offset_px > 0.5 {
+        let offset = alignment.vertical_offset_px;
+        eprintln!(
+            "stereo-depth: warning: {right_name} is {:.2} px {} than {left_name} at the centre, rotated {:.2}° \
+             (up to {:.2} px off); {} (check the rectification)",
+            offset.abs(),
+            if offset >= 0.0 { "lower" } else { "higher" },
+            alignment.rotation_deg,
+            alignment.max_abs_offset_px,
+            if compensated { "compensated" } else { "not compensated (--no-align)" }
+        );
+    }
+    if alignment.verdict != AlignmentVerdict::Unknown && alignment.negative_disparity_share > 0.5 {
+        eprintln!(
+            "stereo-depth: warning: {left_name}, {right_name}: {:.0} % of the matches want negative \
+             disparity: are LEFT and RIGHT swapped?",
+            alignment.negative_disparity_share * 100.0
+        );
+    }
+    let right = if compensated { stereo_rectify::compensate(&right, &alignment) } else { right };
+    (right, RectificationReport::new(&alignment, compensated))
 }
 
 /// Runs the matcher; with SGM's confidence asked for, also returns it, and invalidates the

@@ -38,6 +38,8 @@ pub struct Stats {
     pub depth_png_too_deep: Option<usize>,
     /// --min-depth/--max-depth, their disparity interval and the pixels they cut.
     pub depth_limits: Option<DepthLimitsReport>,
+    /// The check of the pair's rectification (residual vertical misalignment) before matching.
+    pub rectification: RectificationReport,
     pub timings_ms: Timings,
     /// Million disparity evaluations per second of the matching stage: W·H·ndisp / seconds / 1e6.
     pub mde_per_s: f64,
@@ -140,9 +142,38 @@ pub struct RigReport {
     pub horizontal_fov_deg: Option<f64>,
 }
 
+/// The measured vertical misalignment of the right view (see [`stereo_rectify::Alignment`]):
+/// positive offsets mean the right view is lower, a positive rotation that its right side is.
+#[derive(Debug, Serialize)]
+pub struct RectificationReport {
+    /// At the image centre, px.
+    pub vertical_offset_px: f32,
+    pub rotation_deg: f32,
+    /// Largest |offset| over the image, px.
+    pub max_abs_offset_px: f32,
+    /// aligned, misaligned, badly_misaligned or unknown.
+    pub verdict: &'static str,
+    /// Whether the right view was resampled to line up with the left view before matching.
+    pub compensated: bool,
+}
+
+impl RectificationReport {
+    pub fn new(alignment: &stereo_rectify::Alignment, compensated: bool) -> Self {
+        RectificationReport {
+            vertical_offset_px: alignment.vertical_offset_px,
+            rotation_deg: alignment.rotation_deg,
+            max_abs_offset_px: alignment.max_abs_offset_px,
+            verdict: alignment.verdict.as_str(),
+            compensated,
+        }
+    }
+}
+
 #[derive(Debug, Default, Serialize)]
 pub struct Timings {
     pub load: f64,
+    /// Measuring (and compensating) the pair's vertical misalignment.
+    pub rectification: f64,
     #[serde(rename = "match")]
     pub match_: f64,
     pub triangulate: f64,
@@ -297,6 +328,16 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
         let m = |v: Option<f64>| v.map_or_else(|| "-".to_string(), |v| format!("{v}"));
         writeln!(out, "depth limits  {} .. {} m: {} px cut", m(l.min_m), m(l.max_m), l.cut_pixels)?;
     }
+    let r = &stats.rectification;
+    writeln!(
+        out,
+        "rectification {}: offset {:+.2} px at the centre, rotation {:+.3}°, max {:.2} px{}",
+        r.verdict,
+        r.vertical_offset_px,
+        r.rotation_deg,
+        r.max_abs_offset_px,
+        if r.compensated { ", compensated" } else { "" }
+    )?;
     let t = &stats.timings_ms;
     writeln!(
         out,

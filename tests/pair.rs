@@ -91,6 +91,7 @@ fn slanted_stats_json_has_documented_keys() {
         "disparity_px",
         "matcher",
         "rig",
+        "rectification",
         "timings_ms",
         "mde_per_s",
     ] {
@@ -99,7 +100,7 @@ fn slanted_stats_json_has_documented_keys() {
     let timings = stats["timings_ms"].as_object().unwrap();
     let mut keys: Vec<&str> = timings.keys().map(String::as_str).collect();
     keys.sort();
-    assert_eq!(keys, ["load", "match", "total", "triangulate", "write"]);
+    assert_eq!(keys, ["load", "match", "rectification", "total", "triangulate", "write"]);
     assert!(timings.values().all(|v| v.as_f64().unwrap() >= 0.0));
     assert!(timings["total"].as_f64() >= timings["match"].as_f64());
     // The matcher's plan holds at least the strip's aggregation buffer: W·D u16 per row.

@@ -296,6 +296,7 @@ fn process(config: &BatchConfig, job: &Job) -> Result<Stats> {
         limits: settings.limits,
         extras: settings.extras,
         depth_limits: config.depth_limits,
+        align: true,
     };
     pair::process(&pair)
 }

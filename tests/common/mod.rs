@@ -175,3 +175,10 @@ pub fn occluded(gt: &DisparityMap) -> Image<bool> {
     }
     mask
 }
+
+/// `image` moved down by `rows` whole pixels (the top row repeated into the gap): a right view
+/// whose rectification left it lower than the left view.
+pub fn shifted_down(image: &GrayImage, rows: usize) -> GrayImage {
+    let (width, height) = image.size();
+    Image::from_fn(width, height, |x, y| image.get(x, y.saturating_sub(rows)))
+}

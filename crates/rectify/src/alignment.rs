@@ -1,0 +1,658 @@
+//! Residual vertical misalignment of a rectified pair, measured on matched patches.
+//!
+//! Well-textured patches of the left view are matched in the right view over horizontal
+//! disparities and small vertical offsets (coarse at half resolution, then ZNCC at full resolution
+//! and a Lucas–Kanade refinement with a gain and bias, so exposure differences do not bias the
+//! offset). A robust line `dy = a + b·(x_r − cx)` through the offsets gives the offset at the
+//! centre (`a`) and the rotation of the right view (`b = sin θ`).
+
+use rayon::prelude::*;
+use stereo_disparity::{DisparityRange, GrayImage};
+
+/// Below this largest |offset| (px) a pair counts as aligned: matching along rows loses nothing
+/// measurable. Published, carefully rectified pairs reach 0.25 px at their edges (Middlebury
+/// reindeer: 0.15 px at the centre, confirmed by warping with its ground truth), so a tighter
+/// limit would resample pairs that need nothing.
+const ALIGNED_PX: f32 = 0.3;
+/// Up to this largest |offset| (px) resampling the right view restores matching along rows.
+const COMPENSABLE_PX: f32 = 1.5;
+/// Fewest reliable patches behind a verdict.
+const MIN_PATCHES: usize = 24;
+/// Largest vertical offset searched, px.
+const MAX_DY: i32 = 3;
+/// Half-size of the full-resolution patch (15×15).
+const RADIUS: usize = 7;
+/// Half-size of the coarse patch at half resolution (9×9, about 18×18 full-resolution pixels).
+const COARSE_RADIUS: usize = 4;
+/// Vertical offsets of the coarse search at half resolution: ±2 covers ±3 px with a margin.
+const COARSE_DY: i32 = 2;
+/// A coarse match must correlate at least this well (ZNCC) ...
+const MIN_COARSE_ZNCC: f32 = 0.8;
+/// ... and beat every disparity more than [`AMBIGUITY_GAP`] half-resolution px away by this much,
+/// so repetitive texture does not vote.
+const MIN_COARSE_MARGIN: f32 = 0.05;
+const AMBIGUITY_GAP: usize = 2;
+/// The refined match must correlate at least this well.
+const MIN_FINE_ZNCC: f32 = 0.9;
+/// Mean squared gradient (grey levels of 8 bits per pixel, squared) below which a patch is too
+/// flat for a vertical offset to be measured: about 2 levels per pixel.
+const MIN_STRUCTURE: f64 = (2.0 / 255.0) * (2.0 / 255.0);
+/// Full-resolution rows kept clear of the top and bottom: the coarse window with its vertical
+/// search, and the refinement's window with its gradient and interpolation margins.
+const MARGIN_Y: usize = 16;
+const MARGIN_X: usize = 10;
+
+/// How well the rows of a pair line up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AlignmentVerdict {
+    /// Under 0.3 px everywhere: nothing to correct.
+    Aligned,
+    /// Up to 1.5 px somewhere: resampling the right view ([`compensate`]) restores matching.
+    Misaligned,
+    /// Beyond 1.5 px somewhere: compensation helps, but the rectification should be redone.
+    BadlyMisaligned,
+    /// Too few reliable patches (flat or repetitive images, or not a stereo pair).
+    Unknown,
+}
+
+impl AlignmentVerdict {
+    /// The verdict as one lowercase word, as reports print it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            AlignmentVerdict::Aligned => "aligned",
+            AlignmentVerdict::Misaligned => "misaligned",
+            AlignmentVerdict::BadlyMisaligned => "badly_misaligned",
+            AlignmentVerdict::Unknown => "unknown",
+        }
+    }
+}
+
+/// The measured residual vertical misalignment of the right view against the left view.
+///
+/// The left pixel `(x, y)` is found in the right view at `(x − d, y + dy)`, with
+/// `dy = vertical_offset_px + sin(rotation_deg)·(x − d − cx)` (`cx` the centre column): positive
+/// offsets mean the right view shows the scene lower than the left view, and a positive rotation
+/// means its right side is lower (clockwise on screen).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Alignment {
+    /// Vertical offset at the image centre, px.
+    pub vertical_offset_px: f32,
+    /// Rotation of the right view about the image centre, degrees.
+    pub rotation_deg: f32,
+    /// Largest |vertical offset| over the image, px.
+    pub max_abs_offset_px: f32,
+    /// Reliable patches behind the estimate (the inliers of the fit).
+    pub patches_used: usize,
+    /// Share of the reliable patches whose best disparity is negative: most of them means the
+    /// left and right views look swapped.
+    pub negative_disparity_share: f32,
+    pub verdict: AlignmentVerdict,
+}
+
+impl Alignment {
+    /// No measurement: zero offsets, verdict [`AlignmentVerdict::Unknown`].
+    fn unknown(patches_used: usize, negative_disparity_share: f32) -> Self {
+        Alignment {
+            vertical_offset_px: 0.0,
+            rotation_deg: 0.0,
+            max_abs_offset_px: 0.0,
+            patches_used,
+            negative_disparity_share,
+            verdict: AlignmentVerdict::Unknown,
+        }
+    }
+
+    /// The vertical offset at right-view column `x` of an image `width` pixels wide.
+    fn offset_at(&self, x: f64, width: usize) -> f64 {
+        let cx = (width as f64 - 1.0) / 2.0;
+        self.vertical_offset_px as f64 + (self.rotation_deg as f64).to_radians().sin() * (x - cx)
+    }
+}
+
+/// Measures the residual vertical misalignment of `right` against `left` from the images.
+///
+/// `range` is the disparity range the pair will be matched over; the check searches the
+/// symmetric range `−D..=D` (`D` the larger of `|min|` and `|max|`) so it can also tell a pair
+/// whose matches want negative disparities (swapped views). Images of different sizes, or too
+/// small or flat to measure, give [`AlignmentVerdict::Unknown`].
+pub fn estimate_alignment(left: &GrayImage, right: &GrayImage, range: DisparityRange) -> Alignment {
+    let (width, height) = left.size();
+    if right.size() != left.size() || width < 2 * MARGIN_X + 8 || height < 2 * MARGIN_Y + 8 {
+        return Alignment::unknown(0, 0.0);
+    }
+    let left = Plane::from_gray(left);
+    let right = Plane::from_gray(right);
+    let left_half = left.half();
+    let right_half = right.half();
+    let right_sums = Integral::new(&right_half, |v| v as f64);
+    let right_squares = Integral::new(&right_half, |v| (v as f64) * (v as f64));
+    let reach = range.min.unsigned_abs().max(range.max.unsigned_abs()).min(width as u32) as i32;
+    let coarse_reach = (reach + 1) / 2 + 1;
+
+    let matches: Vec<PatchMatch> = select_patches(&left_half)
+        .into_par_iter()
+        .filter_map(|(x, y)| {
+            let coarse = CoarseSearch {
+                left: &left_half,
+                right: &right_half,
+                right_sums: &right_sums,
+                right_squares: &right_squares,
+            };
+            let (d, dy) = coarse.best(x / 2, y / 2, coarse_reach)?;
+            let (xr, dy) = fine_search(&left, &right, x, y, x as i32 - 2 * d, 2 * dy)?;
+            refine(&left, &right, x, y, xr, dy)
+        })
+        .collect();
+
+    let negative = matches.iter().filter(|m| m.disparity < -0.5).count();
+    let negative_disparity_share =
+        if matches.is_empty() { 0.0 } else { negative as f32 / matches.len() as f32 };
+    if matches.len() < MIN_PATCHES {
+        return Alignment::unknown(matches.len(), negative_disparity_share);
+    }
+    let cx = (width as f64 - 1.0) / 2.0;
+    let fit = robust_line(&matches, cx);
+    if fit.inliers < MIN_PATCHES {
+        return Alignment::unknown(fit.inliers, negative_disparity_share);
+    }
+    // The model is linear in x: the largest |offset| is at the left or right edge.
+    let max_abs_offset_px = (fit.offset.abs() + fit.slope.abs() * cx) as f32;
+    let verdict = if max_abs_offset_px < ALIGNED_PX {
+        AlignmentVerdict::Aligned
+    } else if max_abs_offset_px <= COMPENSABLE_PX {
+        AlignmentVerdict::Misaligned
+    } else {
+        AlignmentVerdict::BadlyMisaligned
+    };
+    Alignment {
+        vertical_offset_px: fit.offset as f32,
+        rotation_deg: fit.slope.clamp(-1.0, 1.0).asin().to_degrees() as f32,
+        max_abs_offset_px,
+        patches_used: fit.inliers,
+        negative_disparity_share,
+        verdict,
+    }
+}
+
+/// The right view resampled along columns so that its rows line up with the left view: output
+/// pixel `(x, y)` is the right view at `(x, y + dy(x))` (Catmull–Rom cubic along `y`, borders
+/// replicated). With a zero offset and rotation the image comes back unchanged.
+pub fn compensate(right: &GrayImage, alignment: &Alignment) -> GrayImage {
+    let (width, height) = right.size();
+    let mut out = GrayImage::new(width, height, 0);
+    if width == 0 || height == 0 {
+        return out;
+    }
+    let offsets: Vec<f64> = (0..width).map(|x| alignment.offset_at(x as f64, width)).collect();
+    let last = height as i64 - 1;
+    let data = right.as_slice();
+    out.as_mut_slice().par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+        for (x, (value, &dy)) in row.iter_mut().zip(&offsets).enumerate() {
+            let source = y as f64 + dy;
+            let base = source.floor();
+            let t = source - base;
+            let weights = catmull_rom(t);
+            let mut sum = 0.0;
+            for (k, w) in weights.iter().enumerate() {
+                let sy = (base as i64 + k as i64 - 1).clamp(0, last) as usize;
+                sum += w * data[sy * width + x] as f64;
+            }
+            *value = sum.round().clamp(0.0, 65535.0) as u16;
+        }
+    });
+    out
+}
+
+/// Catmull–Rom weights of the samples at offsets −1, 0, 1, 2 for a point `t ∈ [0, 1)` past 0.
+fn catmull_rom(t: f64) -> [f64; 4] {
+    let (t2, t3) = (t * t, t * t * t);
+    [
+        0.5 * (-t3 + 2.0 * t2 - t),
+        0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+        0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+        0.5 * (t3 - t2),
+    ]
+}
+
+/// A grey image as f32 in `[0, 1]`.
+struct Plane {
+    width: usize,
+    height: usize,
+    data: Vec<f32>,
+}
+
+impl Plane {
+    fn from_gray(image: &GrayImage) -> Self {
+        let (width, height) = image.size();
+        let data = image.as_slice().iter().map(|&v| v as f32 / 65535.0).collect();
+        Plane { width, height, data }
+    }
+
+    /// 2×2 box average (the odd last row or column is dropped).
+    fn half(&self) -> Plane {
+        let (width, height) = (self.width / 2, self.height / 2);
+        let mut data = Vec::with_capacity(width * height);
+        for y in 0..height {
+            let (top, bottom) = (self.row(2 * y), self.row(2 * y + 1));
+            for x in 0..width {
+                data.push(0.25 * (top[2 * x] + top[2 * x + 1] + bottom[2 * x] + bottom[2 * x + 1]));
+            }
+        }
+        Plane { width, height, data }
+    }
+
+    #[inline]
+    fn row(&self, y: usize) -> &[f32] {
+        &self.data[y * self.width..(y + 1) * self.width]
+    }
+
+    #[inline]
+    fn at(&self, x: usize, y: usize) -> f32 {
+        self.data[y * self.width + x]
+    }
+}
+
+/// A summed-area table: sums over any rectangle in four look-ups.
+struct Integral {
+    stride: usize,
+    data: Vec<f64>,
+}
+
+impl Integral {
+    fn new(plane: &Plane, f: impl Fn(f32) -> f64) -> Self {
+        Integral::from_values(plane.width, plane.height, |x, y| f(plane.at(x, y)))
+    }
+
+    fn from_values(width: usize, height: usize, f: impl Fn(usize, usize) -> f64) -> Self {
+        let stride = width + 1;
+        let mut data = vec![0.0; stride * (height + 1)];
+        for y in 0..height {
+            let mut row_sum = 0.0;
+            for x in 0..width {
+                row_sum += f(x, y);
+                data[(y + 1) * stride + x + 1] = data[y * stride + x + 1] + row_sum;
+            }
+        }
+        Integral { stride, data }
+    }
+
+    /// Sum over columns `x0..x1` and rows `y0..y1`.
+    #[inline]
+    fn sum(&self, x0: usize, y0: usize, x1: usize, y1: usize) -> f64 {
+        let s = self.stride;
+        self.data[y1 * s + x1] - self.data[y0 * s + x1] - self.data[y1 * s + x0] + self.data[y0 * s + x0]
+    }
+}
+
+/// Patch centres (even coordinates, so they sit on the half-resolution grid): on a grid of cells,
+/// the position of each cell with the strongest two-dimensional structure (Shi–Tomasi: the
+/// smaller eigenvalue of the gradient structure tensor), if strong enough. A vertical offset is
+/// only observable on structure with a vertical gradient, a disparity only on a horizontal one.
+/// The structure is measured at half resolution (`half`), a quarter of the work.
+fn select_patches(half: &Plane) -> Vec<(usize, usize)> {
+    let (width, height) = (half.width, half.height);
+    // Central-difference gradient products, zero on the border.
+    let mut products = vec![[0f32; 3]; width * height];
+    for y in 1..height - 1 {
+        let (above, row, below) = (half.row(y - 1), half.row(y), half.row(y + 1));
+        for x in 1..width - 1 {
+            // Half-resolution pixels are two full-resolution ones apart: a quarter of the difference.
+            let gx = 0.25 * (row[x + 1] - row[x - 1]);
+            let gy = 0.25 * (below[x] - above[x]);
+            products[y * width + x] = [gx * gx, gy * gy, gx * gy];
+        }
+    }
+    let [xx, yy, xy] =
+        [0, 1, 2].map(|k| Integral::from_values(width, height, |x, y| products[y * width + x][k] as f64));
+    // The full-resolution patch is about 8×8 half-resolution pixels.
+    const R: usize = RADIUS.div_ceil(2);
+    let n = ((2 * R) * (2 * R)) as f64;
+    let structure = |x: usize, y: usize| {
+        let (x0, y0, x1, y1) = (x - R, y - R, x + R, y + R);
+        let (sxx, syy, sxy) =
+            (xx.sum(x0, y0, x1, y1) / n, yy.sum(x0, y0, x1, y1) / n, xy.sum(x0, y0, x1, y1) / n);
+        0.5 * (sxx + syy) - (0.25 * (sxx - syy).powi(2) + sxy * sxy).sqrt()
+    };
+
+    // A few hundred patches, more on larger images, at a fixed cost per patch.
+    let (x_lo, x_hi) = (MARGIN_X / 2, width - MARGIN_X / 2);
+    let (y_lo, y_hi) = (MARGIN_Y / 2, height - MARGIN_Y / 2);
+    let area = (4 * (x_hi - x_lo) * (y_hi - y_lo)) as f64;
+    let target = (area / 512.0).clamp(64.0, 1024.0);
+    let cell = ((area / target).sqrt() / 2.0).round().max((RADIUS + 1) as f64) as usize;
+    let mut best = Vec::new();
+    for cy in (y_lo..y_hi).step_by(cell) {
+        for cx in (x_lo..x_hi).step_by(cell) {
+            let mut cell_best: Option<(f64, usize, usize)> = None;
+            for y in cy..(cy + cell).min(y_hi) {
+                for x in cx..(cx + cell).min(x_hi) {
+                    let s = structure(x, y);
+                    if cell_best.map_or(true, |(b, _, _)| s > b) {
+                        cell_best = Some((s, x, y));
+                    }
+                }
+            }
+            best.extend(cell_best);
+        }
+    }
+    // Strong enough in absolute terms (above noise) and beside the image's best cells (so a
+    // barely textured cell does not dilute the fit with noisy offsets).
+    let mut scores: Vec<f64> = best.iter().map(|b| b.0).collect();
+    scores.sort_by(f64::total_cmp);
+    let p90 = scores.get(scores.len() * 9 / 10).copied().unwrap_or(0.0);
+    let floor = MIN_STRUCTURE.max(0.1 * p90);
+    best.into_iter().filter(|b| b.0 >= floor).map(|(_, x, y)| (2 * x, 2 * y)).collect()
+}
+
+/// The coarse search at half resolution over disparities and vertical offsets.
+struct CoarseSearch<'a> {
+    left: &'a Plane,
+    right: &'a Plane,
+    right_sums: &'a Integral,
+    right_squares: &'a Integral,
+}
+
+impl CoarseSearch<'_> {
+    /// The best `(disparity, vertical offset)` in half-resolution pixels of the patch at `(x, y)`
+    /// over disparities `−reach..=reach`; `None` when weak or ambiguous.
+    fn best(&self, x: usize, y: usize, reach: i32) -> Option<(i32, i32)> {
+        const R: usize = COARSE_RADIUS;
+        const N: usize = 2 * R + 1;
+        let (width, height) = (self.right.width, self.right.height);
+        if x < R
+            || x + R >= self.left.width
+            || y < R + COARSE_DY as usize
+            || y + R + COARSE_DY as usize >= height
+        {
+            return None;
+        }
+        let mut patch = [0f32; N * N];
+        for v in 0..N {
+            patch[v * N..(v + 1) * N].copy_from_slice(&self.left.row(y + v - R)[x - R..x + R + 1]);
+        }
+        let mean = patch.iter().sum::<f32>() / (N * N) as f32;
+        patch.iter_mut().for_each(|p| *p -= mean);
+        let norm = patch.iter().map(|p| p * p).sum::<f32>().sqrt();
+        if norm < 1e-4 {
+            return None;
+        }
+        // Right patch centres xr = x − d, kept inside the image.
+        let xr_lo = (x as i32 - reach).max(R as i32) as usize;
+        let xr_hi = (x as i32 + reach).min((width - 1 - R) as i32);
+        if (xr_hi as usize) < xr_lo {
+            return None;
+        }
+        let count = xr_hi as usize - xr_lo + 1;
+        let mut by_column = vec![f32::NEG_INFINITY; count];
+        let mut best = (f32::NEG_INFINITY, 0usize, 0i32);
+        let mut acc = vec![0f32; count];
+        for dy in -COARSE_DY..=COARSE_DY {
+            acc.iter_mut().for_each(|a| *a = 0.0);
+            let ry = (y as i32 + dy) as usize;
+            for v in 0..N {
+                let row = &self.right.row(ry + v - R)[xr_lo - R..];
+                for (u, &l) in patch[v * N..(v + 1) * N].iter().enumerate() {
+                    // One tap of the correlation for all candidate columns: contiguous, vectorises.
+                    for (a, &r) in acc.iter_mut().zip(&row[u..u + count]) {
+                        *a += l * r;
+                    }
+                }
+            }
+            let (y0, y1) = (ry - R, ry + R + 1);
+            for (k, &a) in acc.iter().enumerate() {
+                let xr = xr_lo + k;
+                let sum = self.right_sums.sum(xr - R, y0, xr + R + 1, y1);
+                let squares = self.right_squares.sum(xr - R, y0, xr + R + 1, y1);
+                let variance = squares - sum * sum / (N * N) as f64;
+                if variance <= 1e-9 {
+                    continue;
+                }
+                let zncc = a / (norm * (variance as f32).sqrt());
+                if zncc > by_column[k] {
+                    by_column[k] = zncc;
+                }
+                if zncc > best.0 {
+                    best = (zncc, k, dy);
+                }
+            }
+        }
+        let (score, k_best, dy) = best;
+        let rival = by_column
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| k.abs_diff(k_best) > AMBIGUITY_GAP)
+            .map(|(_, &s)| s)
+            .fold(f32::NEG_INFINITY, f32::max);
+        if score < MIN_COARSE_ZNCC || score - rival < MIN_COARSE_MARGIN {
+            return None;
+        }
+        Some((x as i32 - (xr_lo + k_best) as i32, dy))
+    }
+}
+
+/// ZNCC of the full-resolution left patch at `(x, y)` and the right patch at `(xr, yr)`.
+fn zncc(left: &Plane, right: &Plane, x: usize, y: usize, xr: usize, yr: usize) -> f32 {
+    const N: usize = 2 * RADIUS + 1;
+    let (mut sl, mut sr, mut sll, mut srr, mut slr) = (0f32, 0f32, 0f32, 0f32, 0f32);
+    for v in 0..N {
+        let lrow = &left.row(y + v - RADIUS)[x - RADIUS..x + RADIUS + 1];
+        let rrow = &right.row(yr + v - RADIUS)[xr - RADIUS..xr + RADIUS + 1];
+        for (&l, &r) in lrow.iter().zip(rrow) {
+            sl += l;
+            sr += r;
+            sll += l * l;
+            srr += r * r;
+            slr += l * r;
+        }
+    }
+    let n = (N * N) as f32;
+    let cov = slr - sl * sr / n;
+    let var = (sll - sl * sl / n) * (srr - sr * sr / n);
+    if var <= 0.0 {
+        return f32::NEG_INFINITY;
+    }
+    cov / var.sqrt()
+}
+
+/// The best integer right position `(xr, dy)` at full resolution around the coarse one.
+fn fine_search(left: &Plane, right: &Plane, x: usize, y: usize, xr0: i32, dy0: i32) -> Option<(i32, i32)> {
+    let mut best = (f32::NEG_INFINITY, 0, 0);
+    let limit = MAX_DY + 1;
+    for dy in (dy0 - 2).max(-limit)..=(dy0 + 2).min(limit) {
+        for xr in xr0 - 2..=xr0 + 2 {
+            if xr < RADIUS as i32 || xr + RADIUS as i32 >= right.width as i32 {
+                continue;
+            }
+            let score = zncc(left, right, x, y, xr as usize, (y as i32 + dy) as usize);
+            if score > best.0 {
+                best = (score, xr, dy);
+            }
+        }
+    }
+    (best.0 >= MIN_COARSE_ZNCC).then_some((best.1, best.2))
+}
+
+/// One matched patch: the left centre's row, the right column it matched, its disparity and
+/// vertical offset.
+struct PatchMatch {
+    x_right: f64,
+    disparity: f64,
+    dy: f64,
+}
+
+/// Sub-pixel match of the left patch at `(x, y)` starting from the right position
+/// `(xr, y + dy)`: Gauss–Newton (Lucas–Kanade) on `left ≈ gain·right(p + (u, v)) + bias`, so the
+/// offset does not depend on exposure differences between the views.
+fn refine(left: &Plane, right: &Plane, x: usize, y: usize, xr: i32, dy: i32) -> Option<PatchMatch> {
+    const N: usize = 2 * RADIUS + 1;
+    let (u0, v0) = ((xr - x as i32) as f64, dy as f64);
+    let (mut u, mut v) = (u0, v0);
+    let template: Vec<f64> =
+        (0..N * N).map(|i| left.at(x + i % N - RADIUS, y + i / N - RADIUS) as f64).collect();
+    let (mut gain, mut bias) = (1.0, 0.0);
+    let mut warped = [0f64; N * N];
+    // The exact derivatives of the bilinear interpolant, so Gauss–Newton converges in a few steps.
+    let mut grad_x = [0f64; N * N];
+    let mut grad_y = [0f64; N * N];
+    let mut converged = false;
+    for iteration in 0..12 {
+        // Every pixel shares the fractional shift, so the bilinear weights are computed once.
+        let (fu, fv) = (u.floor(), v.floor());
+        let (tu, tv) = (u - fu, v - fv);
+        let x0 = x as i64 + fu as i64 - RADIUS as i64;
+        let y0 = y as i64 + fv as i64 - RADIUS as i64;
+        if x0 < 0 || y0 < 0 || x0 + N as i64 >= right.width as i64 || y0 + N as i64 >= right.height as i64 {
+            return None;
+        }
+        let (x0, y0) = (x0 as usize, y0 as usize);
+        for j in 0..N {
+            let (top, bottom) = (&right.row(y0 + j)[x0..x0 + N + 1], &right.row(y0 + j + 1)[x0..x0 + N + 1]);
+            for i in 0..N {
+                let (a, b) = (top[i] as f64, top[i + 1] as f64);
+                let (c, d) = (bottom[i] as f64, bottom[i + 1] as f64);
+                let upper = a + (b - a) * tu;
+                let lower = c + (d - c) * tu;
+                warped[j * N + i] = upper + (lower - upper) * tv;
+                grad_x[j * N + i] = (b - a) + ((d - c) - (b - a)) * tv;
+                grad_y[j * N + i] = lower - upper;
+            }
+        }
+        if iteration == 0 {
+            // Start the photometric model from the patches' means and spreads.
+            let (ml, mr) = mean_pair(&template, |k| warped[k]);
+            let (sl, sr) = spread_pair(&template, |k| warped[k], ml, mr);
+            if sr <= 1e-9 || sl <= 1e-9 {
+                return None;
+            }
+            gain = sl / sr;
+            bias = ml - gain * mr;
+        }
+        let mut h = [[0f64; 4]; 4];
+        let mut g = [0f64; 4];
+        for k in 0..N * N {
+            let r = warped[k];
+            let e = template[k] - gain * r - bias;
+            let jac = [gain * grad_x[k], gain * grad_y[k], r, 1.0];
+            for a in 0..4 {
+                g[a] += jac[a] * e;
+                for b in a..4 {
+                    h[a][b] += jac[a] * jac[b];
+                }
+            }
+        }
+        // Only the upper triangle was summed.
+        let h = std::array::from_fn(|a| std::array::from_fn(|b| h[a.min(b)][a.max(b)]));
+        let step = solve4(h, g)?;
+        u += step[0];
+        v += step[1];
+        gain += step[2];
+        bias += step[3];
+        if (u - u0).abs() > 1.5 || (v - v0).abs() > 1.5 || v.abs() > MAX_DY as f64 + 0.5 || gain <= 0.0 {
+            return None;
+        }
+        if step[0].abs() < 1e-3 && step[1].abs() < 1e-3 {
+            converged = true;
+            break;
+        }
+    }
+    if !converged {
+        return None;
+    }
+    let inner = |k: usize| warped[k];
+    let (ml, mr) = mean_pair(&template, inner);
+    let (sl, sr) = spread_pair(&template, inner, ml, mr);
+    let cov: f64 = (0..N * N).map(|k| (template[k] - ml) * (inner(k) - mr)).sum::<f64>() / (N * N) as f64;
+    if sl <= 0.0 || sr <= 0.0 || cov / (sl * sr) < MIN_FINE_ZNCC as f64 {
+        return None;
+    }
+    Some(PatchMatch { x_right: x as f64 + u, disparity: -u, dy: v })
+}
+
+fn mean_pair(template: &[f64], warped: impl Fn(usize) -> f64) -> (f64, f64) {
+    let n = template.len() as f64;
+    (template.iter().sum::<f64>() / n, (0..template.len()).map(warped).sum::<f64>() / n)
+}
+
+fn spread_pair(template: &[f64], warped: impl Fn(usize) -> f64, ml: f64, mr: f64) -> (f64, f64) {
+    let n = template.len() as f64;
+    let sl = (template.iter().map(|t| (t - ml).powi(2)).sum::<f64>() / n).sqrt();
+    let sr = ((0..template.len()).map(|k| (warped(k) - mr).powi(2)).sum::<f64>() / n).sqrt();
+    (sl, sr)
+}
+
+/// Solves the 4×4 system `h·x = g` (Gaussian elimination, partial pivoting); `None` if singular.
+fn solve4(mut h: [[f64; 4]; 4], mut g: [f64; 4]) -> Option<[f64; 4]> {
+    for col in 0..4 {
+        let pivot = (col..4).max_by(|&a, &b| h[a][col].abs().total_cmp(&h[b][col].abs()))?;
+        if h[pivot][col].abs() < 1e-12 {
+            return None;
+        }
+        h.swap(col, pivot);
+        g.swap(col, pivot);
+        let pivot_row = h[col];
+        for row in col + 1..4 {
+            let f = h[row][col] / pivot_row[col];
+            for (target, &p) in h[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                *target -= f * p;
+            }
+            g[row] -= f * g[col];
+        }
+    }
+    let mut x = [0f64; 4];
+    for row in (0..4).rev() {
+        let s: f64 = (row + 1..4).map(|k| h[row][k] * x[k]).sum();
+        x[row] = (g[row] - s) / h[row][row];
+    }
+    Some(x)
+}
+
+struct LineFit {
+    offset: f64,
+    slope: f64,
+    inliers: usize,
+}
+
+/// `dy = offset + slope·(x_right − cx)` by iteratively reweighted least squares with Tukey's
+/// biweight (scale from the median absolute residual), from the median offset and no slope, so
+/// mismatches (occlusions, repetitive texture) do not pull the line.
+fn robust_line(matches: &[PatchMatch], cx: f64) -> LineFit {
+    let median = |mut values: Vec<f64>| {
+        values.sort_by(f64::total_cmp);
+        values[values.len() / 2]
+    };
+    let mut offset = median(matches.iter().map(|m| m.dy).collect());
+    let mut slope = 0.0;
+    let residual = |m: &PatchMatch, offset: f64, slope: f64| m.dy - offset - slope * (m.x_right - cx);
+    let mut cutoff = f64::INFINITY;
+    for _ in 0..20 {
+        let mad = median(matches.iter().map(|m| residual(m, offset, slope).abs()).collect());
+        // A floor on the scale: a nearly perfect fit must not reject patches for 0.01 px noise.
+        cutoff = 4.685 * (1.4826 * mad).max(0.03);
+        let (mut sw, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for m in matches {
+            let r = residual(m, offset, slope) / cutoff;
+            if r.abs() >= 1.0 {
+                continue;
+            }
+            let w = (1.0 - r * r).powi(2);
+            let x = m.x_right - cx;
+            sw += w;
+            sx += w * x;
+            sy += w * m.dy;
+            sxx += w * x * x;
+            sxy += w * x * m.dy;
+        }
+        let det = sw * sxx - sx * sx;
+        if sw <= 0.0 || det.abs() < 1e-9 {
+            break;
+        }
+        let (new_slope, new_offset) = ((sw * sxy - sx * sy) / det, (sxx * sy - sx * sxy) / det);
+        let change = (new_offset - offset).abs() + (new_slope - slope).abs() * cx;
+        (offset, slope) = (new_offset, new_slope);
+        if change < 1e-5 {
+            break;
+        }
+    }
+    let inliers = matches.iter().filter(|m| residual(m, offset, slope).abs() < cutoff).count();
+    LineFit { offset, slope, inliers }
+}
