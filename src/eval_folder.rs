@@ -22,7 +22,7 @@ pub fn run(args: &EvalFolderArgs, out: &mut impl Write) -> Result<()> {
             DisparityRange::new(settings.min_disparity, max).map_err(|e| UsageError(e.to_string()))?;
         let mut matcher = settings.matcher.clone();
         matcher.set_range(range);
-        run_matcher(&matcher, left, right, &args.dir, settings.extras.min_confidence).map(|(d, _)| d)
+        run_matcher(&matcher, left, right, &args.dir, settings.extras.min_confidence).map(|m| m.disparity)
     })
     .with_context(|| format!("cannot evaluate {}", args.dir.display()))?;
     if args.json {

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use stereo_disparity::{block_match, sgm, sgm_detailed, DisparityMap, GrayImage, Image};
+use stereo_disparity::{block_match, sgm_detailed, Adaptation, DisparityMap, GrayImage, Image};
 
 use crate::config::{Matcher, PairConfig, PreviewOf, UsageError};
 use crate::limits;
@@ -88,7 +88,7 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     let rectification_time = t.elapsed();
 
     let t = Instant::now();
-    let (mut disparity, confidence) =
+    let Matched { mut disparity, confidence, adaptation } =
         run_matcher(&matcher, &left, &right, &config.left, config.extras.min_confidence)?;
     let match_time = t.elapsed();
     drop((left, right));
@@ -215,7 +215,7 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
         depth_resolution_mm: config.rig.as_ref().and_then(|s| DepthResolution::new(&s.rig, depth_m.as_ref())),
         depth_m,
         disparity_px: Summary::of_disparity(&disparity_stats),
-        matcher: MatcherReport::new(&matcher),
+        matcher: MatcherReport::new(&matcher, adaptation.as_ref()),
         rig: config.rig.as_ref().map(|setup| RigReport::new(setup, width, height)),
         points_written,
         depth_png_too_deep,
@@ -283,6 +283,14 @@ fn check_rectification(
     (right, RectificationReport::new(&alignment, compensated))
 }
 
+/// What [`run_matcher`] returns: the disparity map, SGM's confidence when asked for, and what SGM
+/// measured of the pair and adapted to.
+pub(crate) struct Matched {
+    pub disparity: DisparityMap,
+    pub confidence: Option<Image<f32>>,
+    pub adaptation: Option<Adaptation>,
+}
+
 /// Runs the matcher; with SGM's confidence asked for, also returns it, and invalidates the
 /// pixels under `min_confidence`.
 pub(crate) fn run_matcher(
@@ -291,9 +299,9 @@ pub(crate) fn run_matcher(
     right: &GrayImage,
     path: &Path,
     min_confidence: Option<f32>,
-) -> Result<(DisparityMap, Option<Image<f32>>)> {
+) -> Result<Matched> {
     let result = match matcher {
-        Matcher::Sgm(params) if params.confidence => sgm_detailed(left, right, params).map(|out| {
+        Matcher::Sgm(params) => sgm_detailed(left, right, params).map(|out| {
             let (mut disparity, confidence) = (out.disparity, out.confidence);
             if let (Some(t), Some(c)) = (min_confidence, &confidence) {
                 for (d, &c) in disparity.as_mut_slice().iter_mut().zip(c.as_slice()) {
@@ -302,10 +310,13 @@ pub(crate) fn run_matcher(
                     }
                 }
             }
-            (disparity, confidence)
+            Matched { disparity, confidence, adaptation: Some(out.adaptation) }
         }),
-        Matcher::Sgm(params) => sgm(left, right, params).map(|d| (d, None)),
-        Matcher::Bm(params) => block_match(left, right, params).map(|d| (d, None)),
+        Matcher::Bm(params) => block_match(left, right, params).map(|disparity| Matched {
+            disparity,
+            confidence: None,
+            adaptation: None,
+        }),
     };
     result.map_err(|err| {
         use stereo_disparity::Error;

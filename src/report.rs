@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use serde::Serialize;
-use stereo_disparity::{BmCost, PathCount, Subpixel};
+use stereo_disparity::{Adaptation, BmCost, PathCount, Subpixel};
 use stereo_triangulation::{DepthStats, DisparityStats};
 
 use crate::checks::DepthLimitsReport;
@@ -112,6 +112,8 @@ pub enum MatcherReport {
         edge_snap_radius: usize,
         edge_snap_passes: usize,
         fill: bool,
+        /// What the matcher measured of the pair and adapted to (`null` when not measured).
+        adaptation: Option<AdaptationReport>,
     },
     Bm {
         min_disparity: i32,
@@ -123,6 +125,21 @@ pub enum MatcherReport {
         lr_max_diff: Option<f32>,
         subpixel: &'static str,
     },
+}
+
+/// [`stereo_disparity::Adaptation`] as reported.
+#[derive(Debug, Serialize)]
+pub struct AdaptationReport {
+    /// How differently the two views render the same surfaces (8-bit grey levels); above 9 the
+    /// intensity term is dropped.
+    pub radiometric_difference_grey: Option<f32>,
+    /// Whether the AD-census intensity term was used (false: census alone).
+    pub intensity_term: bool,
+    /// Median census Hamming distance at the true match (bits); above 8 P1/P2 are raised.
+    pub census_residual_bits: Option<f32>,
+    /// The penalties used, after raising them for a noisy cost.
+    pub p1_used: u16,
+    pub p2_used: u16,
 }
 
 #[derive(Debug, Serialize)]
@@ -195,7 +212,7 @@ fn subpixel_name(subpixel: Subpixel) -> &'static str {
 }
 
 impl MatcherReport {
-    pub fn new(matcher: &Matcher) -> Self {
+    pub fn new(matcher: &Matcher, adaptation: Option<&Adaptation>) -> Self {
         match matcher {
             Matcher::Sgm(p) => MatcherReport::Sgm {
                 min_disparity: p.range.min,
@@ -220,6 +237,13 @@ impl MatcherReport {
                 edge_snap_radius: p.edge_snap_radius,
                 edge_snap_passes: p.edge_snap_passes,
                 fill: p.fill,
+                adaptation: adaptation.map(|a| AdaptationReport {
+                    radiometric_difference_grey: a.radiometric_difference,
+                    intensity_term: a.intensity_term,
+                    census_residual_bits: a.census_residual,
+                    p1_used: a.p1,
+                    p2_used: a.p2,
+                }),
             },
             Matcher::Bm(p) => MatcherReport::Bm {
                 min_disparity: p.range.min,

@@ -49,7 +49,7 @@ pub use bm::block_match;
 pub use fill::{fill_invalid, filled_mask};
 pub use filter::weighted_median;
 pub use image::{DisparityMap, GrayImage, Image};
-pub use post::SgmOutput;
+pub use post::{Adaptation, SgmOutput};
 pub use sgm::{planned_memory_bytes, sgm, sgm_detailed};
 pub use speckle::remove_speckles;
 pub use status::PixelStatus;
@@ -199,6 +199,12 @@ pub struct SgmParams {
     pub census: CensusWindow,
     /// The matching cost: census alone or AD-census.
     pub matching_cost: MatchingCost,
+    /// Measure the pair first (a census-only match at a quarter of the resolution, about 2 % of
+    /// the work) and adapt to it: AD-census drops its intensity term where the two views render
+    /// surfaces differently (exposure, gamma, vignetting), and P1/P2 rise (up to 2×) where the
+    /// census cost is noisy at the true match (sensor noise, JPEG, a blurred view); see
+    /// [`Adaptation`]. Clean pairs are matched as without it.
+    pub adapt_to_pair: bool,
     pub paths: PathCount,
     /// Penalty for a disparity change of one pixel along a path.
     pub p1: u16,
@@ -259,6 +265,7 @@ impl Default for SgmParams {
             range: DisparityRange::default(),
             census: CensusWindow { width: 9, height: 7 },
             matching_cost: MatchingCost::AdCensus { weight: 2, cap: 40 },
+            adapt_to_pair: true,
             paths: PathCount::Eight,
             // Chosen by measurement on the seven Middlebury scenes (bad2, holes counted): a high
             // P1 with a moderate P2, no uniqueness test (it removed more right than wrong

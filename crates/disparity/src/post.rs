@@ -20,14 +20,27 @@ pub struct SgmOutput {
     /// With [`SgmParams::confidence`]: per pixel, a confidence in `[0, 1]` (census agreement at
     /// the match times the share of neighbours within 1 px); 0 for invalid and filled pixels.
     pub confidence: Option<Image<f32>>,
-    /// For [`crate::MatchingCost::AdCensus`]: how differently the two views render the same
-    /// surfaces, in 8-bit grey levels (the largest of the median grey-level differences between
-    /// matched pixels of a coarse census-only match over a 3×3 grid of tiles); `None` when not
-    /// measured (census cost, or a pair too small or too poorly matched to tell).
+    /// What the matcher measured of the pair and how it adapted ([`SgmParams::adapt_to_pair`]).
+    pub adaptation: Adaptation,
+}
+
+/// What [`crate::sgm_detailed`] measured of the pair before matching (a census-only match at a
+/// quarter of the resolution), and how it adapted the cost and the penalties.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Adaptation {
+    /// How differently the two views render the same surfaces, in 8-bit grey levels (the largest
+    /// median grey-level difference between matched pixels over a 3×3 grid of tiles); `None` when
+    /// not measured (adaptation off, or a pair too small or too poorly matched to tell).
     pub radiometric_difference: Option<f32>,
-    /// Whether the AD-census intensity term was used: it is dropped (census alone) when
-    /// [`SgmOutput::radiometric_difference`] shows the views differ, e.g. in exposure or gamma.
+    /// Whether the AD-census intensity term was used: it is dropped (census alone) when the
+    /// views differ, e.g. in exposure, gamma or vignetting.
     pub intensity_term: bool,
+    /// The median census Hamming distance at the coarse matches (full resolution): how noisy the
+    /// cost is at the true match (noise, JPEG, a blurred view raise it); `None` when not measured.
+    pub census_residual: Option<f32>,
+    /// The penalties used: [`SgmParams::p1`] and [`SgmParams::p2`], raised for a noisy cost.
+    pub p1: u16,
+    pub p2: u16,
 }
 
 impl SgmOutput {
@@ -114,5 +127,5 @@ pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params
             weighted_median(&disparity, left, params.wmf_radius, params.wmf_sigma_color, false)
         };
     }
-    SgmOutput { disparity, status, confidence: None, radiometric_difference: None, intensity_term: false }
+    SgmOutput { disparity, status, confidence: None, adaptation: Adaptation::default() }
 }

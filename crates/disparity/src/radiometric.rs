@@ -1,7 +1,7 @@
 //! Radiometric preparation of a pair before matching: what makes the cost survive two cameras
 //! that do not see alike (exposure, gamma, vignetting, sensor noise).
 
-use crate::GrayImage;
+use crate::{GrayImage, Image};
 
 /// The `factor × factor` box average of `image` (partial blocks at the right and bottom are
 /// dropped), 8-bit samples stored ×257 when the input is 8-bit.
@@ -31,66 +31,113 @@ pub(crate) fn downsample(image: &GrayImage, factor: usize) -> GrayImage {
 /// reaches 13 or more, and exposure, gamma and bias changes 35 or more.
 pub(crate) const MAX_RADIOMETRIC_DIFFERENCE: f32 = 9.0;
 
-/// How differently the two views render the same surfaces, in 8-bit grey levels: the pair is
-/// matched census-only (blind to radiometry) at a quarter of the resolution (where the box
-/// average also quiets the noise), and the grey-level differences of the matched pixels are
-/// gathered per tile of a 3×3 grid; the result is the largest tile's median difference. A
-/// change of exposure, gamma or a vignetting shifts the medians; a misregistration only widens
-/// their spread. `None` when the pair is too small or too little matched to tell.
-pub(crate) fn radiometric_difference(
-    left: &GrayImage,
-    right: &GrayImage,
-    params: &crate::SgmParams,
-) -> Option<f32> {
-    let (w, _) = left.size();
-    let factor = 4;
-    let (l, r) = (downsample(left, factor), downsample(right, factor));
-    let (cw, ch) = l.size();
-    let min = params.range.min.div_euclid(factor as i32);
-    let max = (params.range.max + factor as i32 - 1).div_euclid(factor as i32).max(min + 1);
-    let count = (max - min) as usize;
-    if cw < 16 || ch < 16 || count > cw || w < 16 {
-        return None;
+/// The largest [`CoarseMatch::census_residual`] (differing bits of the 9×7 census) of a clean
+/// pair: measured 4–8 on the seven Middlebury scenes, 10–15 with noise σ 6 or a blur σ 1.5 in
+/// one view (docs/robustness.md).
+pub(crate) const CLEAN_CENSUS_RESIDUAL: f32 = 8.0;
+
+/// The pair matched census-only at a quarter of the resolution (fast preset: 1/64 of the full
+/// match's work): what the full match learns about the pair before it runs.
+pub(crate) struct CoarseMatch {
+    factor: usize,
+    left: GrayImage,
+    right: GrayImage,
+    disparity: crate::DisparityMap,
+}
+
+impl CoarseMatch {
+    /// `None` when the pair is too small to match at a quarter of its size.
+    pub(crate) fn new(left: &GrayImage, right: &GrayImage, params: &crate::SgmParams) -> Option<Self> {
+        let factor = 4;
+        let (l, r) = (downsample(left, factor), downsample(right, factor));
+        let (cw, ch) = l.size();
+        let min = params.range.min.div_euclid(factor as i32);
+        let max = (params.range.max + factor as i32 - 1).div_euclid(factor as i32).max(min + 1);
+        if cw < 16 || ch < 16 || (max - min) as usize > cw {
+            return None;
+        }
+        let coarse = crate::SgmParams {
+            range: crate::DisparityRange { min, max },
+            matching_cost: crate::MatchingCost::Census,
+            adapt_to_pair: false,
+            paths: crate::PathCount::Four,
+            single_pass: true,
+            edge_snap_radius: 0,
+            fill: false,
+            wmf_radius: 0,
+            speckle_size: 0,
+            confidence: false,
+            max_memory: None,
+            ..params.clone()
+        };
+        let disparity = crate::sgm(&l, &r, &coarse).ok()?;
+        Some(CoarseMatch { factor, left: l, right: r, disparity })
     }
-    let coarse = crate::SgmParams {
-        range: crate::DisparityRange { min, max },
-        matching_cost: crate::MatchingCost::Census,
-        paths: crate::PathCount::Four,
-        single_pass: true,
-        edge_snap_radius: 0,
-        fill: false,
-        wmf_radius: 0,
-        speckle_size: 0,
-        confidence: false,
-        max_memory: None,
-        ..params.clone()
-    };
-    let d = crate::sgm(&l, &r, &coarse).ok()?;
-    // Signed differences per tile of a 3×3 grid: a radiometric change shifts a tile's median
-    // (the same way over the tile), a misregistration only widens its spread.
-    let mut tiles: Vec<Vec<f32>> = vec![Vec::new(); 9];
-    for y in 0..ch {
-        for x in 0..cw {
-            let v = d.get(x, y);
-            if !v.is_finite() {
-                continue;
-            }
-            let xr = x as i64 - v.round() as i64;
-            if xr < 0 || xr >= cw as i64 {
-                continue;
-            }
-            let a = f32::from(l.get(x, y)) / 257.0;
-            let b = f32::from(r.get(xr as usize, y)) / 257.0;
+
+    /// The matched coarse pixels: `(x, y, right x)`.
+    fn matches(&self) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
+        let (cw, ch) = self.left.size();
+        (0..ch).flat_map(move |y| {
+            (0..cw).filter_map(move |x| {
+                let v = self.disparity.get(x, y);
+                let xr = x as i64 - v.round() as i64;
+                (v.is_finite() && (0..cw as i64).contains(&xr)).then_some((x, y, xr as usize))
+            })
+        })
+    }
+
+    /// How differently the two views render the same surfaces, in 8-bit grey levels: the grey-
+    /// level differences of the matched pixels (the box average quiets the noise) per tile of a
+    /// 3×3 grid; the largest tile median. A change of exposure, gamma or a vignetting shifts the
+    /// medians; a misregistration only widens their spread. `None` when too little matched.
+    pub(crate) fn radiometric_difference(&self) -> Option<f32> {
+        let (cw, ch) = self.left.size();
+        let mut tiles: Vec<Vec<f32>> = vec![Vec::new(); 9];
+        for (x, y, xr) in self.matches() {
+            let a = f32::from(self.left.get(x, y)) / 257.0;
+            let b = f32::from(self.right.get(xr, y)) / 257.0;
             tiles[(y * 3 / ch) * 3 + x * 3 / cw].push(a - b);
         }
+        let mut medians = Vec::new();
+        for t in tiles.iter_mut().filter(|t| t.len() >= 20) {
+            let mid = t.len() / 2;
+            medians.push(t.select_nth_unstable_by(mid, f32::total_cmp).1.abs());
+        }
+        if medians.len() < 5 {
+            return None;
+        }
+        medians.into_iter().max_by(f32::total_cmp)
     }
-    let mut medians = Vec::new();
-    for t in tiles.iter_mut().filter(|t| t.len() >= 20) {
-        let mid = t.len() / 2;
-        medians.push(t.select_nth_unstable_by(mid, f32::total_cmp).1.abs());
+
+    /// How noisy the full-resolution census cost is at the true match: the median over the
+    /// coarse matches of the smallest Hamming distance within ±`factor` px of the upsampled
+    /// coarse disparity (the centre pixel of each coarse block). Sensor noise, JPEG and a
+    /// one-sided blur raise it; texture alone barely does. `None` when too little matched.
+    pub(crate) fn census_residual(&self, census_left: &Image<u64>, census_right: &Image<u64>) -> Option<f32> {
+        let (w, h) = census_left.size();
+        let f = self.factor;
+        let mut residuals = Vec::new();
+        for (x, y, _) in self.matches() {
+            let (fx, fy) = (x * f + f / 2, y * f + f / 2);
+            if fx >= w || fy >= h {
+                continue;
+            }
+            let d = (self.disparity.get(x, y) * f as f32).round() as i64;
+            let cl = census_left.get(fx, fy);
+            let best = (d - f as i64..=d + f as i64)
+                .filter_map(|dd| {
+                    let xr = fx as i64 - dd;
+                    (0..w as i64).contains(&xr).then(|| (cl ^ census_right.get(xr as usize, fy)).count_ones())
+                })
+                .min();
+            if let Some(b) = best {
+                residuals.push(b);
+            }
+        }
+        if residuals.len() < 100 {
+            return None;
+        }
+        let mid = residuals.len() / 2;
+        Some(*residuals.select_nth_unstable(mid).1 as f32)
     }
-    if medians.len() < 5 {
-        return None;
-    }
-    medians.into_iter().max_by(f32::total_cmp)
 }

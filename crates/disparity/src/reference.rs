@@ -358,7 +358,9 @@ pub(crate) fn sgm_reference_ad(
     let nd = params.range.count();
     let census_bits = (params.census.width * params.census.height - 1) as u32;
     let census_only;
-    let params = if crate::sgm::intensity_term(left, right, params).1
+    let coarse = crate::radiometric::CoarseMatch::new(left, right, params).filter(|_| params.adapt_to_pair);
+    let difference = coarse.as_ref().and_then(|c| c.radiometric_difference());
+    let params = if crate::sgm::keeps_intensity_term(params, difference)
         || params.matching_cost == crate::MatchingCost::Census
     {
         params
@@ -370,6 +372,9 @@ pub(crate) fn sgm_reference_ad(
     let mut census_right = Image::new(width, height, 0u64);
     census_transform(left, params.census, &mut census_left);
     census_transform(right, params.census, &mut census_right);
+    let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
+    let scaled = crate::sgm::scaled_penalties(params, crate::sgm::penalty_scale(residual));
+    let params = &scaled;
     let mut cost = vec![0u8; width * height * nd];
     hamming_cost_volume(&census_left, &census_right, params.range, census_bits, &mut cost);
     if let crate::MatchingCost::AdCensus { weight, cap } = params.matching_cost {

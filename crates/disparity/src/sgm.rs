@@ -6,7 +6,8 @@ use crate::census::census_transform;
 use crate::confidence::census_confidence;
 use crate::cost::infeasible_cost;
 use crate::memory;
-use crate::post::SgmOutput;
+use crate::post::{Adaptation, SgmOutput};
+use crate::radiometric::CoarseMatch;
 use crate::wta::Selection;
 use crate::{check_pair, DisparityMap, Error, GrayImage, Image, MatchingCost, SgmParams, MAX_AD_CAP};
 
@@ -65,7 +66,9 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
             message: format!("{nd} disparities; at most {} are supported", u16::MAX - 1),
         });
     }
-    let (radiometric_difference, intensity_term) = intensity_term(left, right, params);
+    let coarse = params.adapt_to_pair.then(|| CoarseMatch::new(left, right, params)).flatten();
+    let radiometric_difference = coarse.as_ref().and_then(CoarseMatch::radiometric_difference);
+    let intensity_term = keeps_intensity_term(params, radiometric_difference);
     let census_only;
     let params = if intensity_term || params.matching_cost == MatchingCost::Census {
         params
@@ -79,6 +82,16 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         || census_transform(left, params.census, &mut census_left),
         || census_transform(right, params.census, &mut census_right),
     );
+
+    let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
+    let penalty_scale = penalty_scale(residual);
+    let scaled;
+    let params = if penalty_scale > 1.0 {
+        scaled = scaled_penalties(params, penalty_scale);
+        &scaled
+    } else {
+        params
+    };
 
     memory::plan(width, height, params).check(width, height, params)?;
     let disparity = aggregate_census(left, Some(right), &census_left, &census_right, params);
@@ -103,24 +116,37 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         }
         output.confidence = Some(confidence);
     }
-    output.radiometric_difference = radiometric_difference;
-    output.intensity_term = intensity_term;
+    output.adaptation = Adaptation {
+        radiometric_difference,
+        intensity_term,
+        census_residual: residual,
+        p1: params.p1,
+        p2: params.p2,
+    };
     Ok(output)
 }
 
-/// Whether AD-census keeps its intensity term for this pair, with the measured
+/// Whether AD-census keeps its intensity term, given the pair's measured
 /// [`SgmOutput::radiometric_difference`]. The term only helps while both views render a surface
 /// alike; when they differ (exposure, gamma, vignetting) it misleads, and the cost falls back to
 /// census alone, which no monotonic change of intensity affects.
-pub(crate) fn intensity_term(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> (Option<f32>, bool) {
-    match params.matching_cost {
-        MatchingCost::AdCensus { .. } => {
-            let difference = crate::radiometric::radiometric_difference(left, right, params);
-            let alike = !matches!(difference, Some(d) if d > crate::radiometric::MAX_RADIOMETRIC_DIFFERENCE);
-            (difference, alike)
-        }
-        MatchingCost::Census => (None, false),
-    }
+pub(crate) fn keeps_intensity_term(params: &SgmParams, radiometric_difference: Option<f32>) -> bool {
+    matches!(params.matching_cost, MatchingCost::AdCensus { .. })
+        && !matches!(radiometric_difference, Some(d) if d > crate::radiometric::MAX_RADIOMETRIC_DIFFERENCE)
+}
+
+/// How much to raise P1 and P2 for a pair whose census cost is noisy at the true match
+/// ([`CoarseMatch::census_residual`], in differing bits): sensor noise, JPEG and a one-sided
+/// blur flip census bits, and stronger smoothness keeps those flips from choosing the winner.
+/// 1 up to the residual of clean pairs, then proportional, at most 2.
+pub(crate) fn penalty_scale(residual: Option<f32>) -> f32 {
+    residual.map_or(1.0, |r| (r / crate::radiometric::CLEAN_CENSUS_RESIDUAL).clamp(1.0, 2.0))
+}
+
+/// `params` with P1 and P2 scaled by `scale` (P2 at most [`MAX_P2`]).
+pub(crate) fn scaled_penalties(params: &SgmParams, scale: f32) -> SgmParams {
+    let scale = |p: u16| (f32::from(p) * scale).round() as u16;
+    SgmParams { p1: scale(params.p1), p2: scale(params.p2).min(MAX_P2), ..params.clone() }
 }
 
 /// Path aggregation (costs computed on the fly from the census images) and winner-takes-all
