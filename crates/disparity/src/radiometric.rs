@@ -141,3 +141,44 @@ impl CoarseMatch {
         Some(*residuals.select_nth_unstable(mid).1 as f32)
     }
 }
+
+/// JPEG's 8×8 block artefacts: the mean absolute step between neighbours across the block grid's
+/// lines (every 8th column and row from the origin), over the mean step everywhere. About 1 for a
+/// camera image, 1.16–1.8 after JPEG at quality 50 (docs/robustness.md). Compressed views carry
+/// their blocks at the same place in both images, which census reads as texture at disparity 0.
+pub(crate) fn blockiness(image: &GrayImage) -> f32 {
+    let (w, h) = image.size();
+    if w < 16 || h < 16 {
+        return 1.0;
+    }
+    // Sums of |step| (16-bit units) on and off the grid, horizontally then vertically.
+    let (mut on, mut all, mut n_on, mut n_all) = (0u64, 0u64, 0u64, 0u64);
+    for y in 0..h {
+        let row = image.row(y);
+        for x in 1..w {
+            let step = u64::from(row[x].abs_diff(row[x - 1]));
+            all += step;
+            n_all += 1;
+            if x % 8 == 0 {
+                on += step;
+                n_on += 1;
+            }
+        }
+        if y > 0 {
+            let above = image.row(y - 1);
+            for (a, b) in above.iter().zip(row) {
+                let step = u64::from(a.abs_diff(*b));
+                all += step;
+                n_all += 1;
+                if y % 8 == 0 {
+                    on += step;
+                    n_on += 1;
+                }
+            }
+        }
+    }
+    if all == 0 || n_on == 0 {
+        return 1.0;
+    }
+    ((on as f64 / n_on as f64) / (all as f64 / n_all as f64)) as f32
+}

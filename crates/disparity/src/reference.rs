@@ -373,7 +373,10 @@ pub(crate) fn sgm_reference_ad(
     census_transform(left, params.census, &mut census_left);
     census_transform(right, params.census, &mut census_right);
     let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
-    let scaled = crate::sgm::scaled_penalties(params, crate::sgm::penalty_scale(residual));
+    let blockiness = params
+        .adapt_to_pair
+        .then(|| crate::radiometric::blockiness(left).min(crate::radiometric::blockiness(right)));
+    let scaled = crate::sgm::scaled_penalties(params, crate::sgm::penalty_scale(residual, blockiness));
     let params = &scaled;
     let mut cost = vec![0u8; width * height * nd];
     hamming_cost_volume(&census_left, &census_right, params.range, census_bits, &mut cost);

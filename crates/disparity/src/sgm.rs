@@ -7,7 +7,7 @@ use crate::confidence::census_confidence;
 use crate::cost::infeasible_cost;
 use crate::memory;
 use crate::post::{Adaptation, SgmOutput};
-use crate::radiometric::CoarseMatch;
+use crate::radiometric::{blockiness, CoarseMatch};
 use crate::wta::Selection;
 use crate::{check_pair, DisparityMap, Error, GrayImage, Image, MatchingCost, SgmParams, MAX_AD_CAP};
 
@@ -84,7 +84,8 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     );
 
     let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
-    let penalty_scale = penalty_scale(residual);
+    let blockiness = params.adapt_to_pair.then(|| blockiness(left).min(blockiness(right)));
+    let penalty_scale = penalty_scale(residual, blockiness);
     let scaled;
     let params = if penalty_scale > 1.0 {
         scaled = scaled_penalties(params, penalty_scale);
@@ -136,12 +137,20 @@ pub(crate) fn keeps_intensity_term(params: &SgmParams, radiometric_difference: O
 }
 
 /// How much to raise P1 and P2 for a pair whose census cost is noisy at the true match
-/// ([`CoarseMatch::census_residual`], in differing bits): sensor noise, JPEG and a one-sided
-/// blur flip census bits, and stronger smoothness keeps those flips from choosing the winner.
-/// 1 up to the residual of clean pairs, then proportional, at most 2.
-pub(crate) fn penalty_scale(residual: Option<f32>) -> f32 {
-    residual.map_or(1.0, |r| (r / crate::radiometric::CLEAN_CENSUS_RESIDUAL).clamp(1.0, 2.0))
+/// ([`CoarseMatch::census_residual`], in differing bits) or whose views carry JPEG blocks
+/// ([`blockiness`], the smaller of the two views'): noise, JPEG and a one-sided blur flip census
+/// bits, and stronger smoothness keeps those flips from choosing the winner. 1 up to what clean
+/// pairs show, then proportional, at most 2 (docs/robustness.md).
+pub(crate) fn penalty_scale(residual: Option<f32>, blockiness: Option<f32>) -> f32 {
+    let noisy = residual.map_or(1.0, |r| r / crate::radiometric::CLEAN_CENSUS_RESIDUAL);
+    let blocky = blockiness.map_or(1.0, |b| 1.0 + (b - CLEAN_BLOCKINESS) / BLOCKINESS_PER_STEP);
+    noisy.max(blocky).clamp(1.0, 2.0)
 }
+
+/// The largest [`blockiness`] of an uncompressed view (1.03 on the Middlebury scenes) …
+const CLEAN_BLOCKINESS: f32 = 1.05;
+/// … and how much more doubles the penalties (JPEG at quality 50 measures 1.16–1.8).
+const BLOCKINESS_PER_STEP: f32 = 0.15;
 
 /// `params` with P1 and P2 scaled by `scale` (P2 at most [`MAX_P2`]).
 pub(crate) fn scaled_penalties(params: &SgmParams, scale: f32) -> SgmParams {
