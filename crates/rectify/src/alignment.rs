@@ -425,16 +425,7 @@ impl CoarseSearch<'_> {
                 *s += r;
                 *q += r * r;
             }
-            acc.iter_mut().for_each(|a| *a = 0.0);
-            for v in 0..N {
-                let row = &self.right.row(ry + v - R)[xr_lo - R..];
-                for (u, &l) in patch[v * N..(v + 1) * N].iter().enumerate() {
-                    // One tap of the correlation for all candidate columns: contiguous, vectorises.
-                    for (a, &r) in acc.iter_mut().zip(&row[u..u + count]) {
-                        *a += l * r;
-                    }
-                }
-            }
+            correlate(&patch, |v| &self.right.row(ry + v - R)[xr_lo - R..], &mut acc);
             // Window sums slide along the columns, in f64 so the running sums do not drift.
             let mut sum: f64 = column_sums[..N].iter().map(|&s| s as f64).sum();
             let mut squares: f64 = column_squares[..N].iter().map(|&q| q as f64).sum();
@@ -470,6 +461,42 @@ impl CoarseSearch<'_> {
             return None;
         }
         Some((x as i32 - (xr_lo + k_best) as i32, dy))
+    }
+}
+
+/// `acc[k] = Σ patch[v][u]·row(v)[k + u]` for the coarse patch: eight columns at a time, so the
+/// sums stay in registers over all taps instead of going through memory at each one.
+fn correlate<'a>(patch: &[f32], row: impl Fn(usize) -> &'a [f32], acc: &mut [f32]) {
+    const N: usize = 2 * COARSE_RADIUS + 1;
+    const L: usize = 8;
+    let count = acc.len();
+    let block = |k0: usize| {
+        let mut sums = [0f32; L];
+        for v in 0..N {
+            let row = &row(v)[k0..k0 + N - 1 + L];
+            for (u, &l) in patch[v * N..(v + 1) * N].iter().enumerate() {
+                for (s, &r) in sums.iter_mut().zip(&row[u..u + L]) {
+                    *s += l * r;
+                }
+            }
+        }
+        sums
+    };
+    if count < L {
+        acc.iter_mut().for_each(|a| *a = 0.0);
+        for v in 0..N {
+            let row = row(v);
+            for (u, &l) in patch[v * N..(v + 1) * N].iter().enumerate() {
+                for (a, &r) in acc.iter_mut().zip(&row[u..u + count]) {
+                    *a += l * r;
+                }
+            }
+        }
+        return;
+    }
+    // The last block is aligned to the end (overlapping the one before) so no read runs past it.
+    for k0 in (0..count).step_by(L).map(|k| k.min(count - L)) {
+        acc[k0..k0 + L].copy_from_slice(&block(k0));
     }
 }
 
