@@ -270,6 +270,9 @@ impl Plane {
     }
 }
 
+/// A patch centre `(x, y)` at full resolution.
+type Centre = (usize, usize);
+
 /// Patch centres (even coordinates, so they sit on the half-resolution grid): on a grid of cells,
 /// the position of each cell with the strongest two-dimensional structure (Shi–Tomasi: the
 /// smaller eigenvalue of the gradient structure tensor), if strong enough. A vertical offset is
@@ -278,7 +281,7 @@ impl Plane {
 /// 8 half-resolution pixels wide, so that loses nothing that matters and saves most of the work).
 ///
 /// Returns at most [`FIRST_PATCHES`] centres spread evenly over the image, then the others.
-fn select_patches(half: &Plane) -> (Vec<(usize, usize)>, Vec<(usize, usize)>) {
+fn select_patches(half: &Plane) -> (Vec<Centre>, Vec<Centre>) {
     let (width, height) = (half.width, half.height);
     // Gradient products summed over 2×2 blocks: block (bx, by) holds half-resolution pixels
     // 2bx..2bx+2 × 2by..2by+2 (central differences, none on the border).
