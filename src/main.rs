@@ -22,6 +22,7 @@ use std::io::{self, Write};
 use std::process::ExitCode;
 
 use anyhow::Context;
+use clap::error::{ContextKind, ContextValue, ErrorKind};
 
 use crate::args::{Cli, Command};
 use crate::config::{BatchConfig, BatchMergeConfig, EvalConfig, PairConfig, UsageError};
@@ -46,9 +47,7 @@ fn run() -> anyhow::Result<ExitCode> {
             let code = ExitCode::from(err.exit_code().clamp(0, 255) as u8);
             // --help and --version end up here too, with exit status 0, and so does the help
             // shown when no argument is given: printed whole.
-            if !err.use_stderr()
-                || err.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
-            {
+            if !err.use_stderr() || err.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
                 err.print().context("cannot print the usage message")?;
                 return Ok(code);
             }
@@ -93,8 +92,11 @@ fn run() -> anyhow::Result<ExitCode> {
 }
 
 /// clap's error as one line: its message, and its tip when it has one (the usage lines and the
-/// pointer to --help are left out).
+/// pointer to --help are left out); missing arguments are named, see [`missing_arguments`].
 fn clap_one_line(err: &clap::Error) -> String {
+    if let Some(line) = missing_arguments(err) {
+        return line;
+    }
     let text = err.render().to_string();
     let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
     let first = lines.next().unwrap_or("invalid arguments");
@@ -106,6 +108,26 @@ fn clap_one_line(err: &clap::Error) -> String {
         }
     }
     message
+}
+
+/// A missing required argument: clap lists them one per line below its message, which alone
+/// names nothing, so they are named here from the error's context, with the usage of the
+/// (sub)command (one line when clap gives several).
+fn missing_arguments(err: &clap::Error) -> Option<String> {
+    if err.kind() != ErrorKind::MissingRequiredArgument {
+        return None;
+    }
+    let Some(ContextValue::Strings(missing)) = err.get(ContextKind::InvalidArg) else {
+        return None;
+    };
+    let mut line = format!("missing {}", missing.join(", "));
+    if let Some(ContextValue::StyledStr(usage)) = err.get(ContextKind::Usage) {
+        let usage = usage.to_string();
+        let usage = usage.trim_start().strip_prefix("Usage:").unwrap_or(&usage);
+        let forms: Vec<&str> = usage.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+        line.push_str(&format!("; usage: {} (see --help)", forms.join(" | ")));
+    }
+    Some(line)
 }
 
 fn is_broken_pipe(err: &anyhow::Error) -> bool {

@@ -172,3 +172,42 @@ fn eval_errors() {
     let message = run.assert_error(2);
     assert!(message.contains("--gt-scale"), "{message}");
 }
+
+/// A missing required argument is named on the one error line, with the usage of its
+/// (sub)command: clap's own message lists the names on lines of their own.
+#[test]
+fn missing_required_arguments_are_named() {
+    let dir = scene();
+    // The command line, what must be reported missing, and the start of the usage shown.
+    let cases: &[(&[&str], &str, &str)] = &[
+        (&[], "<LEFT>, <RIGHT>", "stereo-depth <LEFT> <RIGHT>"),
+        (&["left.pgm"], "<RIGHT>", "stereo-depth <LEFT> <RIGHT>"),
+        (&["left.pgm", "right.pgm", "--cx", "3"], "--cy <PX>", "stereo-depth "),
+        (&["batch"], "--out <OUT_DIR>, <INPUT_DIR>", "stereo-depth batch "),
+        (&["batch", "."], "--out <OUT_DIR>", "stereo-depth batch "),
+        (&["batch-merge"], "<OUT_DIR>", "stereo-depth batch-merge <OUT_DIR>"),
+        (&["calc"], "--baseline <MM>, --focal <MM>, --pixel <UM>", "stereo-depth calc "),
+        (&["calc", "--baseline", "80", "--focal", "12"], "--pixel <UM>", "stereo-depth calc "),
+        (&["eval"], "<EST>, <GT>", "stereo-depth eval <EST> <GT>"),
+        (&["eval", "gt.pfm"], "<GT>", "stereo-depth eval <EST> <GT>"),
+        (&["eval-folder"], "<DIR>", "stereo-depth eval-folder <DIR>"),
+        (&["info"], "<FILE>", "stereo-depth info <FILE>"),
+        (&["degrade"], "--out <DIR>, <LEFT>, <RIGHT>", "stereo-depth degrade "),
+        (&["degrade", "left.pgm", "right.pgm"], "--out <DIR>", "stereo-depth degrade "),
+    ];
+    for &(args, missing, usage) in cases {
+        let run = run_in(dir.path(), args);
+        let message = run.assert_error(2);
+        assert_eq!(run.stdout, "", "{args:?}");
+        let expected = format!("stereo-depth: error: missing {missing}; usage: {usage}");
+        assert!(message.starts_with(&expected), "{args:?}: {message}\n  want {expected}...");
+        assert!(message.ends_with(" (see --help)"), "{args:?}: {message}");
+    }
+    assert_eq!(list(dir.path()), ["gt.pfm", "left.pgm", "right.pgm"]);
+
+    // A flag without its value is clap's one-line message, naming the flag.
+    let message = run_in(dir.path(), &["calc", "--focal", "12", "--pixel", "4", "--baseline"])
+        .assert_error(2)
+        .to_string();
+    assert!(message.contains("--baseline <MM>") && message.contains("a value is required"), "{message}");
+}
