@@ -374,6 +374,7 @@ pub(crate) fn stream_and_select(inputs: &Inputs<'_>, strips: usize, overlap: usi
 
 /// How many pixels ahead the second pass prefetches the sums it will add to: by then the first
 /// pass's sums of that row have long left the cache.
+#[cfg(target_arch = "x86_64")]
 const PREFETCH_PIXELS: usize = 6;
 
 /// Asks for the stored sums of the pixel `PREFETCH_PIXELS` ahead in this pass's direction.

@@ -35,6 +35,7 @@ pub(crate) fn fits(max_cost: u16, p1: u16, max_p2: u16) -> bool {
 /// Word indices that interleave the even-lane and odd-lane words of a 2×32-word pair back into
 /// lane order (for `_mm512_permutex2var_epi16`): result word `m` is disparity `base + m`, taken
 /// from the even words (indices 0..32) or the odd words (32..64) at position `(base + m) / 2`.
+#[cfg(target_arch = "x86_64")]
 pub(crate) fn interleave(base: usize) -> [i16; 32] {
     std::array::from_fn(|m| {
         let d = base + m;

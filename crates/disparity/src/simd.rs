@@ -177,7 +177,8 @@ pub(crate) fn path_step_scalar<const N: usize>(
 /// below `nd`, and [`JUNK_COST`] for `nd <= k < lanes`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn cost_row(
-    features: Features,
+    // Only picks among the x86 kernels.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))] features: Features,
     left: &[u64],
     right: &[u64],
     min_disparity: i32,
@@ -262,7 +263,8 @@ pub(crate) fn cost_row_scalar(
 /// `worst <= 255` (asserted).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn cost_row_u8(
-    features: Features,
+    // Only picks among the x86 kernels.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))] features: Features,
     left: &[u64],
     right: &[u64],
     min_disparity: i32,

@@ -60,6 +60,8 @@ pub(crate) fn row_u8_available(level: Level, lanes: usize) -> bool {
 /// Returns `false`, touching nothing, when this CPU or this lane count has no register kernel;
 /// the caller then steps pixel by pixel.
 #[allow(clippy::too_many_arguments)]
+// Elsewhere there is no register kernel: only the lengths are checked before returning `false`.
+#[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
 pub(crate) fn row_u8<const K: usize>(
     level: Level,
     cost: &[u8],

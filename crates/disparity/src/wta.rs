@@ -96,9 +96,11 @@ pub(crate) struct WtaScratch {
     right_cost: Vec<u16>,
     right_index: Vec<u16>,
     /// Left view: each pixel's winning disparity index (fused AVX-512 kernel).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     left_best: Vec<u16>,
     /// The winner's cost and its two neighbours' (the winner's own where it has none), for the
     /// subpixel fits done 16 pixels at a time after the row (fused AVX-512 kernel).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     around: [Vec<u16>; 3],
 }
 
