@@ -362,6 +362,20 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
         r.max_abs_offset_px,
         if r.compensated { ", compensated" } else { "" }
     )?;
+    if let MatcherReport::Sgm { adaptation: Some(a), p1, p2, .. } = &stats.matcher {
+        // The CLI always asks for AD-census: without its intensity term, the pair made it drop.
+        let cost = match (a.intensity_term, a.radiometric_difference_grey) {
+            (true, _) => "AD-census".to_string(),
+            (false, Some(d)) => format!("census alone (the views' grey levels differ by {d:.0})"),
+            (false, None) => "census".to_string(),
+        };
+        let penalties = if (a.p1_used, a.p2_used) == (*p1, *p2) {
+            format!("P1 {p1} P2 {p2}")
+        } else {
+            format!("P1 {} P2 {} (raised for a noisy cost)", a.p1_used, a.p2_used)
+        };
+        writeln!(out, "cost          {cost}, {penalties}")?;
+    }
     let t = &stats.timings_ms;
     writeln!(
         out,
