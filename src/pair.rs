@@ -71,10 +71,13 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     limits::fit_memory(&mut matcher, &config.left, size, other, limits)?;
     let planned_matcher_bytes = limits::matcher_bytes(&matcher, width, height);
 
-    let left = stereo_io::load_gray_limited(&config.left, limits.max_pixels)
-        .context("cannot read the left image")?;
-    let right = stereo_io::load_gray_limited(&config.right, limits.max_pixels)
-        .context("cannot read the right image")?;
+    // Both views decode at once: PNG decoding is single-threaded, and it is most of the load.
+    let (left, right) = rayon::join(
+        || stereo_io::load_gray_limited(&config.left, limits.max_pixels),
+        || stereo_io::load_gray_limited(&config.right, limits.max_pixels),
+    );
+    let left = left.context("cannot read the left image")?;
+    let right = right.context("cannot read the right image")?;
     let load = t.elapsed();
     // The headers were read a moment ago; a file replaced since is caught here.
     for (path, image) in [(&config.left, &left), (&config.right, &right)] {
