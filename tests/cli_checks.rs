@@ -4,7 +4,7 @@
 mod common;
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use common::*;
 use image::{ImageBuffer, ImageFormat, Luma, Rgb};
@@ -36,52 +36,16 @@ fn png16(path: &Path) -> ImageBuffer<Luma<u16>, Vec<u16>> {
     }
 }
 
-/// Every output of a pair run on data/slanted with RIG and `extra`.
-struct Slanted {
-    run: Run,
-    exr: PathBuf,
-    pfm: PathBuf,
-    depth_png: PathBuf,
-    disparity_png: PathBuf,
-    points: PathBuf,
-    preview: PathBuf,
-    stats: PathBuf,
-}
-
-fn run_slanted(dir: &Path, rig: &[&str], extra: &[&str]) -> Slanted {
-    let (left, right) = (slanted("left.png"), slanted("right.png"));
-    let out = |name: &str| dir.join(name);
-    let o = Slanted {
-        run: Run { code: None, stdout: String::new(), stderr: String::new() },
-        exr: out("depth.exr"),
-        pfm: out("disp.pfm"),
-        depth_png: out("depth.png"),
-        disparity_png: out("disp.png"),
-        points: out("points.ply"),
-        preview: out("preview.png"),
-        stats: out("stats.json"),
-    };
-    let mut args = vec![s(&left), s(&right), "--max-disparity", "64"];
-    args.extend(rig);
-    args.extend(["-o", s(&o.exr), "--disparity", s(&o.pfm), "--depth-png", s(&o.depth_png)]);
-    args.extend(["--disparity-png", s(&o.disparity_png), "--points", s(&o.points)]);
-    args.extend(["--preview", s(&o.preview), "--stats", s(&o.stats)]);
-    args.extend(extra);
-    let run = run_in(dir, &args);
-    run.assert_success();
-    Slanted { run, ..o }
-}
-
 #[test]
 fn depth_limits_cut_every_output() {
     let (min, max) = (6.0f64, 12.0f64);
     let dir = tempfile::tempdir().unwrap();
-    let all = run_slanted(dir.path(), &RIG, &[]);
+    let (_, all) = run_slanted(dir.path(), &RIG, &[]);
     let all_disparity = stereo_io::read_pfm(&all.pfm).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let cut = run_slanted(dir.path(), &RIG, &["--min-depth", "6", "--max-depth", "12"]);
-    assert!(cut.run.stderr.is_empty(), "{}", cut.run.stderr);
-    assert!(cut.run.stdout.contains("depth limits  6 .. 12 m:"), "{}", cut.run.stdout);
+    let (run, cut) = run_slanted(dir.path(), &RIG, &["--min-depth", "6", "--max-depth", "12"]);
+    assert!(run.stderr.is_empty(), "{}", run.stderr);
+    assert!(run.stdout.contains("depth limits  6 .. 12 m:"), "{}", run.stdout);
 
     let disparity = stereo_io::read_pfm(&cut.pfm).unwrap();
     let (width, height) = disparity.size();
@@ -146,7 +110,7 @@ fn depth_limits_cut_every_output() {
 #[test]
 fn a_far_limit_alone_keeps_the_near_box() {
     let dir = tempfile::tempdir().unwrap();
-    let cut = run_slanted(dir.path(), &RIG, &["--max-depth", "10"]);
+    let (_, cut) = run_slanted(dir.path(), &RIG, &["--max-depth", "10"]);
     let z = read_exr(&cut.exr).z;
     assert!(z.as_slice().iter().all(|&z| z.is_nan() || (z > 0.0 && z <= 10.0)));
     assert!(z.get(165, 105) < 6.0, "the box at 5.3 m is kept: {}", z.get(165, 105));
@@ -212,9 +176,9 @@ fn depth_limits_are_usage_errors_without_a_rig_or_when_invalid() {
 /// Runs data/slanted with a rig; asserts success, the outputs, and returns stderr.
 fn warned(rig: &[&str]) -> String {
     let dir = tempfile::tempdir().unwrap();
-    let run = run_slanted(dir.path(), rig, &[]);
-    assert!(run.exr.is_file() && run.stats.is_file());
-    run.run.stderr
+    let (run, outputs) = run_slanted(dir.path(), rig, &[]);
+    assert!(outputs.exr.is_file() && outputs.stats.is_file());
+    run.stderr
 }
 
 #[test]

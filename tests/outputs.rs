@@ -12,62 +12,6 @@ use common::*;
 use serde_json::Value;
 use stereo_disparity::DisparityMap;
 
-/// Every output of one pair run on data/slanted.
-struct Outputs {
-    exr: PathBuf,
-    pfm: PathBuf,
-    depth_png: PathBuf,
-    disparity_png: PathBuf,
-    points: PathBuf,
-    preview: PathBuf,
-    stats: PathBuf,
-}
-
-impl Outputs {
-    fn in_dir(dir: &Path) -> Outputs {
-        Outputs {
-            exr: dir.join("depth.exr"),
-            pfm: dir.join("disp.pfm"),
-            depth_png: dir.join("depth.png"),
-            disparity_png: dir.join("disp.png"),
-            points: dir.join("points.ply"),
-            preview: dir.join("preview.png"),
-            stats: dir.join("stats.json"),
-        }
-    }
-
-    fn args(&self) -> Vec<&str> {
-        vec![
-            "-o",
-            s(&self.exr),
-            "--disparity",
-            s(&self.pfm),
-            "--depth-png",
-            s(&self.depth_png),
-            "--disparity-png",
-            s(&self.disparity_png),
-            "--points",
-            s(&self.points),
-            "--preview",
-            s(&self.preview),
-            "--stats",
-            s(&self.stats),
-        ]
-    }
-}
-
-fn run_slanted(dir: &Path, rig: &[&str], extra: &[&str]) -> (Run, Outputs) {
-    let (left, right) = (slanted("left.png"), slanted("right.png"));
-    let outputs = Outputs::in_dir(dir);
-    let mut args = vec![s(&left), s(&right), "--max-disparity", "64"];
-    args.extend(rig);
-    args.extend(outputs.args());
-    args.extend(extra);
-    let run = run_in(dir, &args);
-    run.assert_success();
-    (run, outputs)
-}
-
 fn stats(path: &Path) -> Value {
     serde_json::from_str(&fs::read_to_string(path).unwrap()).unwrap()
 }

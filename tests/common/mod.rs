@@ -182,3 +182,60 @@ pub fn shifted_down(image: &GrayImage, rows: usize) -> GrayImage {
     let (width, height) = image.size();
     Image::from_fn(width, height, |x, y| image.get(x, y.saturating_sub(rows)))
 }
+
+/// Every output of one pair run on data/slanted.
+pub struct Outputs {
+    pub exr: PathBuf,
+    pub pfm: PathBuf,
+    pub depth_png: PathBuf,
+    pub disparity_png: PathBuf,
+    pub points: PathBuf,
+    pub preview: PathBuf,
+    pub stats: PathBuf,
+}
+
+impl Outputs {
+    pub fn in_dir(dir: &Path) -> Outputs {
+        Outputs {
+            exr: dir.join("depth.exr"),
+            pfm: dir.join("disp.pfm"),
+            depth_png: dir.join("depth.png"),
+            disparity_png: dir.join("disp.png"),
+            points: dir.join("points.ply"),
+            preview: dir.join("preview.png"),
+            stats: dir.join("stats.json"),
+        }
+    }
+
+    pub fn args(&self) -> Vec<&str> {
+        vec![
+            "-o",
+            s(&self.exr),
+            "--disparity",
+            s(&self.pfm),
+            "--depth-png",
+            s(&self.depth_png),
+            "--disparity-png",
+            s(&self.disparity_png),
+            "--points",
+            s(&self.points),
+            "--preview",
+            s(&self.preview),
+            "--stats",
+            s(&self.stats),
+        ]
+    }
+}
+
+/// Runs data/slanted with `rig` and `extra`, writing every output into `dir`; asserts success.
+pub fn run_slanted(dir: &Path, rig: &[&str], extra: &[&str]) -> (Run, Outputs) {
+    let (left, right) = (slanted("left.png"), slanted("right.png"));
+    let outputs = Outputs::in_dir(dir);
+    let mut args = vec![s(&left), s(&right), "--max-disparity", "64"];
+    args.extend(rig);
+    args.extend(outputs.args());
+    args.extend(extra);
+    let run = run_in(dir, &args);
+    run.assert_success();
+    (run, outputs)
+}
