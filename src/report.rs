@@ -137,6 +137,8 @@ pub struct AdaptationReport {
     pub intensity_term: bool,
     /// Median census Hamming distance at the true match (bits); above 8 P1/P2 are raised.
     pub census_residual_bits: Option<f32>,
+    /// Whether census compared smoothed views (Gaussian σ 1 px) because the residual was above 8.
+    pub census_smoothing: bool,
     /// The penalties used, after raising them for a noisy cost.
     pub p1_used: u16,
     pub p2_used: u16,
@@ -241,6 +243,7 @@ impl MatcherReport {
                     radiometric_difference_grey: a.radiometric_difference,
                     intensity_term: a.intensity_term,
                     census_residual_bits: a.census_residual,
+                    census_smoothing: a.census_smoothing,
                     p1_used: a.p1,
                     p2_used: a.p2,
                 }),
@@ -374,6 +377,8 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
         } else {
             format!("P1 {} P2 {} (raised for a noisy cost)", a.p1_used, a.p2_used)
         };
+        let penalties =
+            if a.census_smoothing { format!("{penalties}, census on smoothed views") } else { penalties };
         writeln!(out, "cost          {cost}, {penalties}")?;
     }
     let t = &stats.timings_ms;

@@ -38,6 +38,8 @@ pub struct Adaptation {
     /// The median census Hamming distance at the coarse matches (full resolution): how noisy the
     /// cost is at the true match (noise, JPEG, a blurred view raise it); `None` when not measured.
     pub census_residual: Option<f32>,
+    /// Whether census compared Gaussian-smoothed views (σ 1 px) because the residual was high.
+    pub census_smoothing: bool,
     /// The penalties used: [`SgmParams::p1`] and [`SgmParams::p2`], raised for a noisy cost.
     pub p1: u16,
     pub p2: u16,

@@ -84,6 +84,20 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     );
 
     let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
+    // A noisy census (sensor noise, a blurred view) compares smoothed views instead: single noisy
+    // pixels then flip fewer bits, and the two views' sharpness is closer (docs/robustness.md).
+    let census_smoothing = residual.is_some_and(|r| r > crate::radiometric::CLEAN_CENSUS_RESIDUAL);
+    if census_smoothing {
+        let sigma = crate::radiometric::NOISY_CENSUS_SMOOTHING;
+        let (l, r) = rayon::join(
+            || crate::radiometric::gaussian_blur(left, sigma),
+            || crate::radiometric::gaussian_blur(right, sigma),
+        );
+        rayon::join(
+            || census_transform(&l, params.census, &mut census_left),
+            || census_transform(&r, params.census, &mut census_right),
+        );
+    }
     let blockiness = params.adapt_to_pair.then(|| blockiness(left).min(blockiness(right)));
     let penalty_scale = penalty_scale(residual, blockiness);
     let scaled;
@@ -121,6 +135,7 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         radiometric_difference,
         intensity_term,
         census_residual: residual,
+        census_smoothing,
         p1: params.p1,
         p2: params.p2,
     };
