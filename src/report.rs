@@ -137,7 +137,10 @@ pub struct AdaptationReport {
     pub intensity_term: bool,
     /// Median census Hamming distance at the true match (bits); above 8 P1/P2 are raised.
     pub census_residual_bits: Option<f32>,
-    /// Whether census compared smoothed views (Gaussian σ 1 px) because the residual was above 8.
+    /// JPEG block artefacts (steps across the 8×8 grid over steps between; ~1 without JPEG).
+    pub blockiness: Option<f32>,
+    /// Whether census compared smoothed views (Gaussian σ 1 px): residual above 8 or blockiness
+    /// above 1.05.
     pub census_smoothing: bool,
     /// The penalties used, after raising them for a noisy cost.
     pub p1_used: u16,
@@ -243,6 +246,7 @@ impl MatcherReport {
                     radiometric_difference_grey: a.radiometric_difference,
                     intensity_term: a.intensity_term,
                     census_residual_bits: a.census_residual,
+                    blockiness: a.blockiness,
                     census_smoothing: a.census_smoothing,
                     p1_used: a.p1,
                     p2_used: a.p2,

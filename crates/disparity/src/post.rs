@@ -38,7 +38,10 @@ pub struct Adaptation {
     /// The median census Hamming distance at the coarse matches (full resolution): how noisy the
     /// cost is at the true match (noise, JPEG, a blurred view raise it); `None` when not measured.
     pub census_residual: Option<f32>,
-    /// Whether census compared Gaussian-smoothed views (σ 1 px) because the residual was high.
+    /// JPEG's 8×8 block artefacts: the steps across the block grid over the steps between its
+    /// lines, the smaller of the two views' (about 1 for camera images); `None` when not measured.
+    pub blockiness: Option<f32>,
+    /// Whether census compared Gaussian-smoothed views (σ 1 px), for a high residual or JPEG blocks.
     pub census_smoothing: bool,
     /// The penalties used: [`SgmParams::p1`] and [`SgmParams::p2`], raised for a noisy cost.
     pub p1: u16,

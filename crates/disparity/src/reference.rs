@@ -373,14 +373,14 @@ pub(crate) fn sgm_reference_ad(
     census_transform(left, params.census, &mut census_left);
     census_transform(right, params.census, &mut census_right);
     let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
-    if residual.is_some_and(|r| r > crate::radiometric::CLEAN_CENSUS_RESIDUAL) {
+    let blockiness = params
+        .adapt_to_pair
+        .then(|| crate::radiometric::blockiness(left).min(crate::radiometric::blockiness(right)));
+    if crate::sgm::smooths_census(residual, blockiness) {
         let sigma = crate::radiometric::NOISY_CENSUS_SMOOTHING;
         census_transform(&crate::radiometric::gaussian_blur(left, sigma), params.census, &mut census_left);
         census_transform(&crate::radiometric::gaussian_blur(right, sigma), params.census, &mut census_right);
     }
-    let blockiness = params
-        .adapt_to_pair
-        .then(|| crate::radiometric::blockiness(left).min(crate::radiometric::blockiness(right)));
     let scaled = crate::sgm::scaled_penalties(params, crate::sgm::penalty_scale(residual, blockiness));
     let params = &scaled;
     let mut cost = vec![0u8; width * height * nd];

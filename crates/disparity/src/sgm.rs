@@ -84,9 +84,11 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     );
 
     let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
-    // A noisy census (sensor noise, a blurred view) compares smoothed views instead: single noisy
-    // pixels then flip fewer bits, and the two views' sharpness is closer (docs/robustness.md).
-    let census_smoothing = residual.is_some_and(|r| r > crate::radiometric::CLEAN_CENSUS_RESIDUAL);
+    let blockiness = params.adapt_to_pair.then(|| blockiness(left).min(blockiness(right)));
+    // A noisy census (sensor noise, a blurred view, JPEG blocks) compares smoothed views instead:
+    // single noisy pixels then flip fewer bits, block edges fade, and the two views' sharpness is
+    // closer (docs/robustness.md).
+    let census_smoothing = smooths_census(residual, blockiness);
     if census_smoothing {
         let sigma = crate::radiometric::NOISY_CENSUS_SMOOTHING;
         let (l, r) = rayon::join(
@@ -98,7 +100,6 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
             || census_transform(&r, params.census, &mut census_right),
         );
     }
-    let blockiness = params.adapt_to_pair.then(|| blockiness(left).min(blockiness(right)));
     let penalty_scale = penalty_scale(residual, blockiness);
     let scaled;
     let params = if penalty_scale > 1.0 {
@@ -135,6 +136,7 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         radiometric_difference,
         intensity_term,
         census_residual: residual,
+        blockiness,
         census_smoothing,
         p1: params.p1,
         p2: params.p2,
@@ -160,6 +162,12 @@ pub(crate) fn penalty_scale(residual: Option<f32>, blockiness: Option<f32>) -> f
     let noisy = residual.map_or(1.0, |r| r / crate::radiometric::CLEAN_CENSUS_RESIDUAL);
     let blocky = blockiness.map_or(1.0, |b| 1.0 + (b - CLEAN_BLOCKINESS) / BLOCKINESS_PER_STEP);
     noisy.max(blocky).clamp(1.0, 2.0)
+}
+
+/// Whether census compares smoothed views: a census residual above the clean pairs' or JPEG blocks.
+pub(crate) fn smooths_census(residual: Option<f32>, blockiness: Option<f32>) -> bool {
+    residual.is_some_and(|r| r > crate::radiometric::CLEAN_CENSUS_RESIDUAL)
+        || blockiness.is_some_and(|b| b > CLEAN_BLOCKINESS)
 }
 
 /// The largest [`blockiness`] of an uncompressed view (1.03 on the Middlebury scenes) …
