@@ -82,9 +82,8 @@ fn census_transform_with(image: &GrayImage, window: CensusWindow, out: &mut Imag
 
 /// Whether every sample is a multiple of 257, as in 8-bit images scaled to 16 bits (`b · 257`
 /// has both bytes `b`): then the high bytes compare exactly as the samples do, and a 512-bit
-/// comparison covers 64 pixels instead of 32.
-#[cfg(target_arch = "x86_64")]
-fn is_byte_scaled(image: &GrayImage) -> bool {
+/// comparison covers 64 pixels instead of 32 (and a downsampled view can stay byte-scaled).
+pub(crate) fn is_byte_scaled(image: &GrayImage) -> bool {
     image.as_slice().chunks(4096).all(|c| c.iter().fold(true, |ok, &v| ok & (v >> 8 == v & 0xff)))
 }
 

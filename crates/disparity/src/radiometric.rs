@@ -10,7 +10,7 @@ use crate::{GrayImage, Image};
 pub(crate) fn downsample(image: &GrayImage, factor: usize) -> GrayImage {
     let (w, h) = image.size();
     let (cw, ch) = (w / factor, h / factor);
-    let byte_scaled = image.as_slice().iter().all(|&v| v % 257 == 0);
+    let byte_scaled = crate::census::is_byte_scaled(image);
     let n = (factor * factor) as u64;
     GrayImage::from_fn(cw, ch, |x, y| {
         let mut sum = 0u64;

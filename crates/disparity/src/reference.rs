@@ -357,32 +357,9 @@ pub(crate) fn sgm_reference_ad(
     let (width, height) = left.size();
     let nd = params.range.count();
     let census_bits = (params.census.width * params.census.height - 1) as u32;
-    let census_only;
-    let coarse = crate::radiometric::CoarseMatch::new(left, right, params).filter(|_| params.adapt_to_pair);
-    let difference = coarse.as_ref().and_then(|c| c.radiometric_difference());
-    let params = if crate::sgm::keeps_intensity_term(params, difference)
-        || params.matching_cost == crate::MatchingCost::Census
-    {
-        params
-    } else {
-        census_only = crate::SgmParams { matching_cost: crate::MatchingCost::Census, ..params.clone() };
-        &census_only
-    };
-    let mut census_left = Image::new(width, height, 0u64);
-    let mut census_right = Image::new(width, height, 0u64);
-    census_transform(left, params.census, &mut census_left);
-    census_transform(right, params.census, &mut census_right);
-    let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
-    let blockiness = params
-        .adapt_to_pair
-        .then(|| crate::radiometric::blockiness(left).min(crate::radiometric::blockiness(right)));
-    if crate::sgm::smooths_census(residual, blockiness) {
-        let sigma = crate::radiometric::NOISY_CENSUS_SMOOTHING;
-        census_transform(&crate::radiometric::gaussian_blur(left, sigma), params.census, &mut census_left);
-        census_transform(&crate::radiometric::gaussian_blur(right, sigma), params.census, &mut census_right);
-    }
-    let scaled = crate::sgm::scaled_penalties(params, crate::sgm::penalty_scale(residual, blockiness));
-    let params = &scaled;
+    let (adapted, census_left, census_right, _) =
+        crate::sgm::adapt_to_pair(left, right, params, census_transform);
+    let params = &adapted;
     let mut cost = vec![0u8; width * height * nd];
     hamming_cost_volume(&census_left, &census_right, params.range, census_bits, &mut cost);
     if let crate::MatchingCost::AdCensus { weight, cap } = params.matching_cost {

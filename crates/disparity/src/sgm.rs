@@ -66,48 +66,9 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
             message: format!("{nd} disparities; at most {} are supported", u16::MAX - 1),
         });
     }
-    let coarse = params.adapt_to_pair.then(|| CoarseMatch::new(left, right, params)).flatten();
-    let radiometric_difference = coarse.as_ref().and_then(CoarseMatch::radiometric_difference);
-    let intensity_term = keeps_intensity_term(params, radiometric_difference);
-    let census_only;
-    let params = if intensity_term || params.matching_cost == MatchingCost::Census {
-        params
-    } else {
-        census_only = SgmParams { matching_cost: MatchingCost::Census, ..params.clone() };
-        &census_only
-    };
-    let mut census_left = Image::new(width, height, 0u64);
-    let mut census_right = Image::new(width, height, 0u64);
-    rayon::join(
-        || census_transform(left, params.census, &mut census_left),
-        || census_transform(right, params.census, &mut census_right),
-    );
-
-    let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
-    let blockiness = params.adapt_to_pair.then(|| blockiness(left).min(blockiness(right)));
-    // A noisy census (sensor noise, a blurred view, JPEG blocks) compares smoothed views instead:
-    // single noisy pixels then flip fewer bits, block edges fade, and the two views' sharpness is
-    // closer (docs/robustness.md).
-    let census_smoothing = smooths_census(residual, blockiness);
-    if census_smoothing {
-        let sigma = crate::radiometric::NOISY_CENSUS_SMOOTHING;
-        let (l, r) = rayon::join(
-            || crate::radiometric::gaussian_blur(left, sigma),
-            || crate::radiometric::gaussian_blur(right, sigma),
-        );
-        rayon::join(
-            || census_transform(&l, params.census, &mut census_left),
-            || census_transform(&r, params.census, &mut census_right),
-        );
-    }
-    let penalty_scale = penalty_scale(residual, blockiness);
-    let scaled;
-    let params = if penalty_scale > 1.0 {
-        scaled = scaled_penalties(params, penalty_scale);
-        &scaled
-    } else {
-        params
-    };
+    let (adapted, census_left, census_right, adaptation) =
+        adapt_to_pair(left, right, params, census_transform);
+    let params = &adapted;
 
     memory::plan(width, height, params).check(width, height, params)?;
     let disparity = aggregate_census(left, Some(right), &census_left, &census_right, params);
@@ -132,16 +93,61 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         }
         output.confidence = Some(confidence);
     }
-    output.adaptation = Adaptation {
+    output.adaptation = adaptation;
+    Ok(output)
+}
+
+/// What [`SgmParams::adapt_to_pair`] does before aggregation, shared by the matcher and its scalar
+/// reference (each with its own census transform): the coarse match, the census images (of
+/// smoothed views where the cost is noisy or blocky), the cost without its intensity term where the
+/// views differ radiometrically, and the penalties scaled for a noisy cost.
+pub(crate) fn adapt_to_pair(
+    left: &GrayImage,
+    right: &GrayImage,
+    params: &SgmParams,
+    census: impl Fn(&GrayImage, crate::CensusWindow, &mut Image<u64>) + Sync,
+) -> (SgmParams, Image<u64>, Image<u64>, Adaptation) {
+    let (width, height) = left.size();
+    let coarse = params.adapt_to_pair.then(|| CoarseMatch::new(left, right, params)).flatten();
+    let radiometric_difference = coarse.as_ref().and_then(CoarseMatch::radiometric_difference);
+    let intensity_term = keeps_intensity_term(params, radiometric_difference);
+    let matching_cost = if intensity_term { params.matching_cost } else { MatchingCost::Census };
+    let mut census_left = Image::new(width, height, 0u64);
+    let mut census_right = Image::new(width, height, 0u64);
+    rayon::join(
+        || census(left, params.census, &mut census_left),
+        || census(right, params.census, &mut census_right),
+    );
+
+    let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
+    let blockiness = params.adapt_to_pair.then(|| blockiness(left).min(blockiness(right)));
+    // A noisy census (sensor noise, a blurred view, JPEG blocks) compares smoothed views instead:
+    // single noisy pixels then flip fewer bits, block edges fade, and the two views' sharpness is
+    // closer (docs/robustness.md).
+    let census_smoothing = smooths_census(residual, blockiness);
+    if census_smoothing {
+        let sigma = crate::radiometric::NOISY_CENSUS_SMOOTHING;
+        let (l, r) = rayon::join(
+            || crate::radiometric::gaussian_blur(left, sigma),
+            || crate::radiometric::gaussian_blur(right, sigma),
+        );
+        rayon::join(
+            || census(&l, params.census, &mut census_left),
+            || census(&r, params.census, &mut census_right),
+        );
+    }
+    let adapted =
+        SgmParams { matching_cost, ..scaled_penalties(params, penalty_scale(residual, blockiness)) };
+    let adaptation = Adaptation {
         radiometric_difference,
         intensity_term,
         census_residual: residual,
         blockiness,
         census_smoothing,
-        p1: params.p1,
-        p2: params.p2,
+        p1: adapted.p1,
+        p2: adapted.p2,
     };
-    Ok(output)
+    (adapted, census_left, census_right, adaptation)
 }
 
 /// Whether AD-census keeps its intensity term, given the pair's measured
