@@ -2,84 +2,35 @@
 //! cut of the disparity map, and warnings for rig values that look like a unit mistake.
 
 use serde::Serialize;
-use stereo_disparity::DisparityMap;
-use stereo_triangulation::Rig;
+use stereo_pipeline::{DepthLimits, Rig};
 
 use crate::config::UsageError;
 
-/// `--min-depth` / `--max-depth`, checked: each finite and > 0, min below max.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DepthLimits {
-    pub min_m: Option<f64>,
-    pub max_m: Option<f64>,
+/// `--min-depth` / `--max-depth`, checked: each finite and > 0, min below max; `None` when
+/// neither flag is given. The messages name the flags; the pipeline's own check
+/// ([`DepthLimits::new`]) then holds by construction.
+pub fn depth_limits(min_m: Option<f64>, max_m: Option<f64>) -> Result<Option<DepthLimits>, UsageError> {
+    for (flag, value) in [("--min-depth", min_m), ("--max-depth", max_m)] {
+        if let Some(v) = value {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(UsageError(format!("invalid {flag} {v} m (must be a finite number > 0 m)")));
+            }
+        }
+    }
+    if let (Some(min), Some(max)) = (min_m, max_m) {
+        if min >= max {
+            return Err(UsageError(format!("--min-depth {min} m must be below --max-depth {max} m")));
+        }
+    }
+    DepthLimits::new(min_m, max_m).map_err(|err| UsageError(err.to_string()))
 }
 
-impl DepthLimits {
-    /// `None` when neither flag is given.
-    pub fn new(min_m: Option<f64>, max_m: Option<f64>) -> Result<Option<Self>, UsageError> {
-        for (flag, value) in [("--min-depth", min_m), ("--max-depth", max_m)] {
-            if let Some(v) = value {
-                if !(v.is_finite() && v > 0.0) {
-                    return Err(UsageError(format!("invalid {flag} {v} m (must be a finite number > 0 m)")));
-                }
-            }
-        }
-        if let (Some(min), Some(max)) = (min_m, max_m) {
-            if min >= max {
-                return Err(UsageError(format!("--min-depth {min} m must be below --max-depth {max} m")));
-            }
-        }
-        Ok((min_m.is_some() || max_m.is_some()).then_some(DepthLimits { min_m, max_m }))
-    }
-
-    /// The flag to name in "needs a rig" messages.
-    pub fn flag(&self) -> &'static str {
-        if self.min_m.is_some() {
-            "--min-depth"
-        } else {
-            "--max-depth"
-        }
-    }
-
-    /// The disparities whose depth is within the limits: `d + doffs` in `[B·f / max, B·f / min]`
-    /// (`Z = B·f / (d + doffs)`, so the far limit bounds the disparity from below). Without
-    /// --max-depth the lower bound is exclusive: `d + doffs` must stay > 0 to have a depth.
-    pub fn disparity_interval(&self, rig: &Rig) -> (f64, Option<f64>) {
-        let bf_m = rig.baseline_mm * rig.focal_px / 1000.0;
-        let low = self.max_m.map_or(0.0, |max| bf_m / max) - rig.doffs;
-        let high = self.min_m.map(|min| bf_m / min - rig.doffs);
-        (low, high)
-    }
-
-    /// Invalidates (NaN) every disparity whose depth is outside the limits or that has no depth
-    /// at all (`d + doffs <= 0`); returns how many were cut. The decision uses [`Rig::depth`],
-    /// the function that triangulates, so a pixel on the edge of the interval never yields a
-    /// depth a rounding step outside the limits.
-    pub fn apply(&self, disparity: &mut DisparityMap, rig: &Rig) -> usize {
-        let (min, max) = (self.min_m.unwrap_or(0.0), self.max_m.unwrap_or(f64::INFINITY));
-        let mut cut = 0;
-        for d in disparity.as_mut_slice() {
-            if !d.is_finite() {
-                continue;
-            }
-            let inside = rig.depth(f64::from(*d)).is_some_and(|z| z >= min && z <= max);
-            if !inside {
-                *d = f32::NAN;
-                cut += 1;
-            }
-        }
-        cut
-    }
-
-    pub fn report(&self, rig: &Rig, cut_pixels: usize) -> DepthLimitsReport {
-        let (low, high) = self.disparity_interval(rig);
-        DepthLimitsReport {
-            min_m: self.min_m,
-            max_m: self.max_m,
-            disparity_min_px: low,
-            disparity_max_px: high,
-            cut_pixels,
-        }
+/// The flag to name in "needs a rig" messages.
+pub fn depth_limits_flag(limits: &DepthLimits) -> &'static str {
+    if limits.min_m.is_some() {
+        "--min-depth"
+    } else {
+        "--max-depth"
     }
 }
 
@@ -93,6 +44,19 @@ pub struct DepthLimitsReport {
     pub disparity_max_px: Option<f64>,
     /// Pixels with a disparity that the limits invalidated.
     pub cut_pixels: usize,
+}
+
+impl DepthLimitsReport {
+    pub fn new(limits: &DepthLimits, rig: &Rig, cut_pixels: usize) -> Self {
+        let (low, high) = limits.disparity_interval(rig);
+        DepthLimitsReport {
+            min_m: limits.min_m,
+            max_m: limits.max_m,
+            disparity_min_px: low,
+            disparity_max_px: high,
+            cut_pixels,
+        }
+    }
 }
 
 /// Where a baseline came from, for the warning: a flag or a calibration file.
@@ -142,6 +106,8 @@ pub fn print_warnings(warnings: &[String]) {
 
 #[cfg(test)]
 mod tests {
+    use stereo_pipeline::DisparityMap;
+
     use super::*;
 
     fn rig() -> Rig {
@@ -151,21 +117,21 @@ mod tests {
 
     #[test]
     fn limits_are_validated() {
-        assert_eq!(DepthLimits::new(None, None).unwrap(), None);
-        assert!(DepthLimits::new(Some(1.0), Some(2.0)).unwrap().is_some());
+        assert_eq!(depth_limits(None, None).unwrap(), None);
+        assert!(depth_limits(Some(1.0), Some(2.0)).unwrap().is_some());
         for (min, max) in
             [(Some(0.0), None), (None, Some(-1.0)), (Some(f64::NAN), None), (None, Some(f64::INFINITY))]
         {
-            let err = DepthLimits::new(min, max).unwrap_err().0;
+            let err = depth_limits(min, max).unwrap_err().0;
             assert!(err.contains("must be a finite number > 0 m"), "{err}");
         }
-        let err = DepthLimits::new(Some(3.0), Some(3.0)).unwrap_err().0;
+        let err = depth_limits(Some(3.0), Some(3.0)).unwrap_err().0;
         assert_eq!(err, "--min-depth 3 m must be below --max-depth 3 m");
     }
 
     #[test]
     fn limits_cut_the_disparity_map_by_depth() {
-        let limits = DepthLimits::new(Some(4.0), Some(12.0)).unwrap().unwrap();
+        let limits = depth_limits(Some(4.0), Some(12.0)).unwrap().unwrap();
         // 240 / 12 = 20 px and 240 / 4 = 60 px are the edges, and are kept.
         assert_eq!(limits.disparity_interval(&rig()), (20.0, Some(60.0)));
         let mut d = DisparityMap::from_vec(7, 1, vec![19.9, 20.0, 40.0, 60.0, 60.1, f32::NAN, -2.0]).unwrap();
@@ -178,13 +144,13 @@ mod tests {
     #[test]
     fn a_far_limit_alone_cuts_disparities_without_depth() {
         let rig = rig().with_doffs(-10.0).unwrap();
-        let limits = DepthLimits::new(None, Some(24.0)).unwrap().unwrap();
+        let limits = depth_limits(None, Some(24.0)).unwrap().unwrap();
         // d + doffs must be >= 240 / 24 = 10: d >= 20. d = 5 has no depth at all (d + doffs < 0).
         assert_eq!(limits.disparity_interval(&rig), (20.0, None));
         let mut d = DisparityMap::from_vec(3, 1, vec![5.0, 10.0, 20.0]).unwrap();
         assert_eq!(limits.apply(&mut d, &rig), 2);
         assert!(d.get(0, 0).is_nan() && d.get(1, 0).is_nan() && d.get(2, 0) == 20.0);
-        let report = limits.report(&rig, 2);
+        let report = DepthLimitsReport::new(&limits, &rig, 2);
         assert_eq!((report.disparity_min_px, report.disparity_max_px, report.cut_pixels), (20.0, None, 2));
     }
 

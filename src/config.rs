@@ -13,7 +13,7 @@ use crate::args::{
     BatchArgs, BatchMergeArgs, BmCostArg, DepthLimitArgs, EvalArgs, MatchArgs, MatcherArg, PairArgs,
     PathsArg, PresetArg, PreviewOfArg, RigArgs, SubpixelArg,
 };
-use crate::checks::{self, BaselineSource, DepthLimits};
+use crate::checks::{self, BaselineSource};
 use crate::discover::{Pattern, Shard};
 
 /// An invalid argument: reported like clap's own errors, with exit status 2.
@@ -323,28 +323,8 @@ impl MatchSettings {
     }
 }
 
-/// Which matcher runs, with every parameter except the disparity range resolved.
-#[derive(Clone, Debug)]
-pub enum Matcher {
-    Sgm(SgmParams),
-    Bm(BmParams),
-}
-
-impl Matcher {
-    pub fn name(&self) -> &'static str {
-        match self {
-            Matcher::Sgm(_) => "sgm",
-            Matcher::Bm(_) => "bm",
-        }
-    }
-
-    pub fn set_range(&mut self, range: DisparityRange) {
-        match self {
-            Matcher::Sgm(p) => p.range = range,
-            Matcher::Bm(p) => p.range = range,
-        }
-    }
-}
+pub use stereo_pipeline::Matcher;
+use stereo_pipeline::{DepthLimits, PipelineParams};
 
 /// What a preview shows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -411,7 +391,7 @@ impl PairConfig {
             return Err(usage!(
                 "{} needs a rig: give --baseline and the focal length (--focal and --pixel, --focal-px, \
                  or --calib)",
-                limits.flag()
+                checks::depth_limits_flag(limits)
             ));
         }
         let preview_of = match args.preview_of {
@@ -476,6 +456,18 @@ impl PairConfig {
         };
         config.check_paths()?;
         Ok(config)
+    }
+
+    /// The pipeline's parameters, searching `range`.
+    pub fn pipeline_params(&self, range: DisparityRange) -> PipelineParams {
+        let mut matcher = self.matcher.clone();
+        matcher.set_range(range);
+        let mut params = PipelineParams::new(matcher);
+        params.align = self.align;
+        params.min_confidence = self.extras.min_confidence;
+        params.rig = self.rig.as_ref().map(|setup| setup.rig.clone());
+        params.depth_limits = self.depth_limits;
+        params
     }
 
     /// The disparity range for an image `width` pixels wide, checked against the width.
@@ -548,7 +540,7 @@ impl PairConfig {
 }
 
 fn depth_limits(args: &DepthLimitArgs) -> Result<Option<DepthLimits>, UsageError> {
-    DepthLimits::new(args.min_depth, args.max_depth)
+    checks::depth_limits(args.min_depth, args.max_depth)
 }
 
 /// `path` made absolute with `..`, `.` and symbolic links of its folder resolved (the folder

@@ -5,11 +5,10 @@
 use std::io::Write;
 
 use anyhow::{Context, Result};
-use stereo_disparity::DisparityRange;
+use stereo_pipeline::{DisparityRange, PipelineParams, Plan};
 
 use crate::args::EvalFolderArgs;
 use crate::config::{MatchSettings, UsageError};
-use crate::pair::run_matcher;
 
 pub fn run(args: &EvalFolderArgs, out: &mut impl Write) -> Result<()> {
     let settings = MatchSettings::from_args(&args.matching)?;
@@ -22,7 +21,14 @@ pub fn run(args: &EvalFolderArgs, out: &mut impl Write) -> Result<()> {
             DisparityRange::new(settings.min_disparity, max).map_err(|e| UsageError(e.to_string()))?;
         let mut matcher = settings.matcher.clone();
         matcher.set_range(range);
-        run_matcher(&matcher, left, right, &args.dir, settings.extras.min_confidence).map(|m| m.disparity)
+        let mut params = PipelineParams::new(matcher);
+        // Scored as the matcher sees the pair: the benchmark pairs are rectified.
+        params.align = false;
+        params.min_confidence = settings.extras.min_confidence;
+        let plan = Plan::new(&params, left.size(), right.size()).map_err(|e| UsageError(e.to_string()))?;
+        plan.run_gray(left, right.clone())
+            .map(|result| result.disparity)
+            .map_err(|e| anyhow::Error::new(e).context(format!("{}: matching failed", args.dir.display())))
     })
     .with_context(|| format!("cannot evaluate {}", args.dir.display()))?;
     if args.json {

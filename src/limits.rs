@@ -4,10 +4,12 @@
 
 use std::path::Path;
 
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Result};
 use stereo_io::ImageHeader;
 
-use crate::config::{Limits, Matcher};
+use stereo_pipeline::{Matcher, MemoryLimit};
+
+use crate::config::{Limits, UsageError};
 
 /// The header of one input image, checked against `--max-pixels`.
 pub fn probe(path: &Path, limits: &Limits) -> Result<ImageHeader> {
@@ -40,72 +42,45 @@ pub fn other_bytes(left: &ImageHeader, right: &ImageHeader, points: bool) -> u64
     decode.saturating_add(pixels.saturating_mul(per_pixel))
 }
 
-/// The matcher's working memory for a `width × height` pair (its parameters hold the range).
-pub fn matcher_bytes(matcher: &Matcher, width: usize, height: usize) -> u64 {
-    match matcher {
-        Matcher::Sgm(params) => sgm_plan(width, height, params),
-        Matcher::Bm(params) => {
-            // Two prefiltered/census images and two disparity maps, plus per-thread cost rows.
-            let pixels = (width * height) as u64;
-            let threads = rayon::current_num_threads() as u64;
-            let rows = 3 * 4 * (width * params.range.count()) as u64;
-            pixels * (16 + 16 + 4 + 4) + threads * rows
+/// The memory limit of one pair (`--max-memory`, or else what the system has available), with
+/// the bytes `other` the command needs besides the matcher; `None` where neither is known.
+pub fn memory_limit(limits: &Limits, other: u64) -> (Option<MemoryLimit>, Source) {
+    match limits.max_memory {
+        Some(bytes) => (Some(MemoryLimit { bytes, other_bytes: other }), Source::Flag),
+        None => {
+            (available_memory().map(|bytes| MemoryLimit { bytes, other_bytes: other }), Source::Available)
         }
     }
 }
 
-/// Checks the pair's planned memory against `--max-memory` (or the available memory) and, for
-/// SGM, bounds the matcher to what is left, so it aggregates in strips that fit. Errors name the
-/// limit and how to change it.
-pub fn fit_memory(
-    matcher: &mut Matcher,
+/// A planning error as the user should read it: memory errors name the limit and how to change
+/// it; the rest are the pipeline's own.
+pub fn explain(
+    err: stereo_pipeline::Error,
     left: &Path,
+    matcher: &Matcher,
     (width, height): (usize, usize),
-    other: u64,
-    limits: &Limits,
-) -> Result<()> {
-    let (limit, source) = match limits.max_memory {
-        Some(limit) => (limit, Source::Flag),
-        None => match available_memory() {
-            Some(available) => (available, Source::Available),
-            None => return Ok(()),
-        },
+    source: Source,
+) -> anyhow::Error {
+    let stereo_pipeline::Error::TooLarge { needed, limit } = err else {
+        // Parameters the config could not check before the sizes were known.
+        return UsageError(err.to_string()).into();
     };
-    let planned = matcher_bytes(matcher, width, height);
-    if planned.saturating_add(other) <= limit {
-        return Ok(());
-    }
-    // SGM can trade speed for memory: bound it to what the rest leaves.
-    if let Matcher::Sgm(params) = matcher {
-        if let Some(budget) = limit.checked_sub(other) {
-            let mut bounded = params.clone();
-            bounded.max_memory = Some(usize::try_from(budget).unwrap_or(usize::MAX));
-            let bytes = sgm_plan(width, height, &bounded);
-            if bytes <= budget {
-                *params = bounded;
-                return Ok(());
-            }
-        }
-    }
-    let count = match matcher {
-        Matcher::Sgm(p) => p.range.count(),
-        Matcher::Bm(p) => p.range.count(),
-    };
-    let needed = minimum_bytes(matcher, width, height).saturating_add(other);
     let what = format!(
-        "{}: a {width}x{height} pair with {count} disparities needs about {} ({} matcher)",
+        "{}: a {width}x{height} pair with {} disparities needs about {} ({} matcher)",
         left.display(),
+        matcher.range().count(),
         human(needed),
         matcher.name()
     );
     match source {
-        Source::Flag => bail!(
+        Source::Flag => anyhow!(
             "{what}, more than the --max-memory limit of {}; raise it (e.g. --max-memory {}) or lower \
              --max-disparity",
             human(limit),
             suggestion(needed)
         ),
-        Source::Available => bail!(
+        Source::Available => anyhow!(
             "{what}, more than the {} of memory available (MemAvailable in /proc/meminfo); free memory, \
              lower --max-disparity, or set --max-memory {} to try anyway",
             human(limit),
@@ -114,33 +89,10 @@ pub fn fit_memory(
     }
 }
 
-enum Source {
+/// Where the memory limit comes from.
+pub enum Source {
     Flag,
     Available,
-}
-
-/// [`stereo_disparity::planned_memory_bytes`], for sizes its `usize` arithmetic can hold: an
-/// absurd header (e.g. 2147483647 x 1 with the default range of a quarter of the width) would
-/// overflow it, so beyond a sure bound a lower estimate (path state rows and per-pixel maps)
-/// stands in, which is far over any real limit anyway.
-fn sgm_plan(width: usize, height: usize, params: &stereo_disparity::SgmParams) -> u64 {
-    let nd = params.range.count() as u128;
-    let rough = (width as u128) * (nd + 2) * 64 + (width as u128) * (height as u128) * 64;
-    if rough > (usize::MAX >> 8) as u128 {
-        return u64::try_from(rough).unwrap_or(u64::MAX);
-    }
-    stereo_disparity::planned_memory_bytes(width, height, params) as u64
-}
-
-/// The least the matcher can run in (SGM: one-row strips).
-fn minimum_bytes(matcher: &Matcher, width: usize, height: usize) -> u64 {
-    match matcher {
-        Matcher::Sgm(params) => {
-            let smallest = stereo_disparity::SgmParams { max_memory: Some(1), ..params.clone() };
-            sgm_plan(width, height, &smallest)
-        }
-        Matcher::Bm(_) => matcher_bytes(matcher, width, height),
-    }
 }
 
 /// `MemAvailable` of /proc/meminfo, bytes (`None` where there is no such file).

@@ -17,6 +17,7 @@ mod info;
 mod limits;
 mod pair;
 mod report;
+mod writers;
 
 use std::io::{self, Write};
 use std::process::ExitCode;

@@ -9,7 +9,10 @@ use stereo_disparity::{Adaptation, BmCost, PathCount, Subpixel};
 use stereo_triangulation::{DepthStats, DisparityStats};
 
 use crate::checks::DepthLimitsReport;
-use crate::config::{Matcher, RigSetup};
+use stereo_pipeline::{DepthResult, Plan};
+
+use crate::config::{Matcher, PairConfig, RigSetup};
+use crate::writers::WriteCounts;
 
 /// The `--stats` document. Depths are in metres, disparities in pixels, times in milliseconds;
 /// statistics of an empty set (no valid pixel) are `null`, and so are the depth fields and `rig`
@@ -45,6 +48,85 @@ pub struct Stats {
     pub mde_per_s: f64,
     /// Peak working memory the matcher planned (aggregation buffers, per-thread rows), bytes.
     pub planned_matcher_bytes: u64,
+}
+
+/// Times the command measured around the pipeline.
+pub struct StageTimes {
+    pub load: Duration,
+    pub write: Duration,
+    pub total: Duration,
+}
+
+impl Stats {
+    /// The statistics of one pair from its config, plan and pipeline result.
+    pub fn new(
+        config: &PairConfig,
+        plan: &Plan,
+        result: &DepthResult,
+        counts: WriteCounts,
+        times: StageTimes,
+    ) -> Self {
+        let (width, height) = plan.size();
+        let disparity_stats = DisparityStats::from_disparity(&result.disparity);
+        let (valid_pixels, density_percent, depth_m) = match &result.depth {
+            Some(depth) => {
+                let stats = DepthStats::from_depth(depth);
+                (stats.valid_pixels, stats.density_percent, Summary::of_depth(&stats))
+            }
+            None => (disparity_stats.valid_pixels, disparity_stats.density_percent, None),
+        };
+        let match_seconds = result.timings.matching.as_secs_f64();
+        let depth_limits = match (&config.depth_limits, &config.rig, result.depth_limits_cut) {
+            (Some(limits), Some(setup), Some(cut)) => Some(DepthLimitsReport::new(limits, &setup.rig, cut)),
+            _ => None,
+        };
+        Stats {
+            left: display(&config.left),
+            right: display(&config.right),
+            outputs: Outputs {
+                depth: config.output.as_deref().map(display),
+                disparity: config.disparity.as_deref().map(display),
+                stats: config.stats.as_deref().map(display),
+                points: config.points.as_deref().map(display),
+                preview: config.preview.as_deref().map(display),
+                depth_png: config.depth_png.as_deref().map(display),
+                disparity_png: config.disparity_png.as_deref().map(display),
+            },
+            width,
+            height,
+            valid_pixels,
+            density_percent,
+            depth_resolution_mm: config
+                .rig
+                .as_ref()
+                .and_then(|s| DepthResolution::new(&s.rig, depth_m.as_ref())),
+            depth_m,
+            disparity_px: Summary::of_disparity(&disparity_stats),
+            matcher: MatcherReport::new(plan.matcher(), result.adaptation.as_ref()),
+            rig: config.rig.as_ref().map(|setup| RigReport::new(setup, width, height)),
+            points_written: counts.points_written,
+            depth_png_too_deep: counts.depth_png_too_deep,
+            depth_limits,
+            rectification: RectificationReport::new(
+                &result.rectification.alignment,
+                result.rectification.compensated,
+            ),
+            timings_ms: Timings {
+                load: ms(times.load),
+                rectification: ms(result.timings.rectification),
+                match_: ms(result.timings.matching),
+                triangulate: ms(result.timings.triangulation),
+                write: ms(times.write),
+                total: ms(times.total),
+            },
+            planned_matcher_bytes: plan.planned_matcher_bytes(),
+            mde_per_s: if match_seconds > 0.0 {
+                (width * height * plan.range().count()) as f64 / match_seconds / 1e6
+            } else {
+                0.0
+            },
+        }
+    }
 }
 
 #[derive(Debug, Serialize)]

@@ -4,7 +4,7 @@
 use std::io::Cursor;
 
 use image::{DynamicImage, ImageBuffer, ImageFormat, Luma, Rgb};
-use stereo_disparity::GrayImage;
+use stereo_image::GrayImage;
 
 use crate::Error;
 

@@ -31,7 +31,7 @@ const SOBEL_CAP: i32 = 31 * 257;
 pub fn block_match(left: &GrayImage, right: &GrayImage, params: &BmParams) -> Result<DisparityMap, Error> {
     check_pair(left, right)?;
     let (width, height) = left.size();
-    params.range.check(width)?;
+    crate::check_range(&params.range, width)?;
     let block = params.block_size;
     if block.is_multiple_of(2) || !(3..=MAX_BLOCK_SIZE).contains(&block) {
         return Err(Error::InvalidParameter {

@@ -28,7 +28,6 @@ mod confidence;
 mod cost;
 mod fill;
 mod filter;
-mod image;
 mod memory;
 mod path_u8;
 mod post;
@@ -48,11 +47,11 @@ mod wta;
 pub use bm::block_match;
 pub use fill::{fill_invalid, filled_mask};
 pub use filter::weighted_median;
-pub use image::{DisparityMap, GrayImage, Image};
 pub use post::{Adaptation, SgmOutput};
 pub use sgm::{planned_memory_bytes, sgm, sgm_detailed};
 pub use speckle::remove_speckles;
 pub use status::PixelStatus;
+pub use stereo_image::{DisparityMap, DisparityRange, GrayImage, Image, ImageRef};
 
 /// Errors a matcher reports instead of panicking on unusable input.
 #[derive(Debug, thiserror::Error)]
@@ -72,60 +71,25 @@ pub enum Error {
     /// A parameter is outside its accepted range.
     #[error("invalid parameter {name}: {message}")]
     InvalidParameter { name: &'static str, message: String },
-    /// A buffer's length does not match the image size it was given with.
-    #[error("buffer of {len} samples does not hold a {width}x{height} image")]
-    BufferSize { width: usize, height: usize, len: usize },
+    /// An image buffer or a disparity range that does not describe what it was given for.
+    #[error(transparent)]
+    Image(#[from] stereo_image::Error),
 }
 
-/// The disparities searched: `min <= d < max` (so `max - min` is OpenCV's `numDisparities`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct DisparityRange {
-    pub min: i32,
-    pub max: i32,
-}
-
-impl DisparityRange {
-    /// Checks that the range holds at least one disparity.
-    pub fn new(min: i32, max: i32) -> Result<Self, Error> {
-        if max <= min {
-            return Err(Error::EmptyRange { min, max });
-        }
-        Ok(DisparityRange { min, max })
+/// Checks that `range` holds at least one disparity and fits an image `width` pixels wide.
+pub(crate) fn check_range(range: &DisparityRange, width: usize) -> Result<(), Error> {
+    if range.max <= range.min {
+        return Err(Error::EmptyRange { min: range.min, max: range.max });
     }
-
-    /// How many disparities are searched.
-    pub fn count(&self) -> usize {
-        (self.max as i64 - self.min as i64).max(0) as usize
+    if range.count() > width {
+        return Err(Error::RangeWiderThanImage {
+            min: range.min,
+            max: range.max,
+            count: range.count(),
+            width,
+        });
     }
-
-    /// The default search range for an image `width` pixels wide: `0..` a quarter of the width,
-    /// rounded up to a multiple of 16 (at least 16, at most the width).
-    pub fn default_for_width(width: usize) -> Self {
-        let quarter = width.div_ceil(4).div_ceil(16) * 16;
-        let max = quarter.clamp(16.min(width), width.max(1));
-        DisparityRange { min: 0, max: max as i32 }
-    }
-
-    pub(crate) fn check(&self, width: usize) -> Result<(), Error> {
-        if self.max <= self.min {
-            return Err(Error::EmptyRange { min: self.min, max: self.max });
-        }
-        if self.count() > width {
-            return Err(Error::RangeWiderThanImage {
-                min: self.min,
-                max: self.max,
-                count: self.count(),
-                width,
-            });
-        }
-        Ok(())
-    }
-}
-
-impl Default for DisparityRange {
-    fn default() -> Self {
-        DisparityRange { min: 0, max: 64 }
-    }
+    Ok(())
 }
 
 /// How many path directions SGM aggregates over.

@@ -35,7 +35,7 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
             window_height: params.census.height,
         });
     }
-    params.range.check(width)?;
+    crate::check_range(&params.range, width)?;
     if params.p1 == 0 || params.p1 >= params.p2 || params.p2 > MAX_P2 {
         return Err(Error::InvalidParameter {
             name: "p1/p2",

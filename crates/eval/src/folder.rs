@@ -26,7 +26,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use stereo_disparity::{DisparityMap, GrayImage, Image};
+use stereo_image::{DisparityMap, GrayImage, Image};
 
 use crate::{metrics_masked, Metrics};
 
@@ -212,8 +212,7 @@ where
     let right = stereo_io::load_gray(&scene.right)?;
     let gt = stereo_io::read_disparity(&scene.ground_truth, scene.gt_scale)?;
     let (width, height) = left.size();
-    let ndisp =
-        scene.ndisp.unwrap_or_else(|| stereo_disparity::DisparityRange::default_for_width(width).count());
+    let ndisp = scene.ndisp.unwrap_or_else(|| stereo_image::DisparityRange::default_for_width(width).count());
     let start = Instant::now();
     let estimate = matcher(&left, &right, ndisp)
         .map_err(|e| FolderError::Matcher { scene: scene.name.clone(), message: e.to_string() })?;

@@ -16,7 +16,7 @@
 //! agree with the Python tool to the last bit.
 //!
 //! ```
-//! use stereo_disparity::DisparityMap;
+//! use stereo_image::DisparityMap;
 //! use stereo_eval::metrics;
 //!
 //! let gt = DisparityMap::from_vec(4, 1, vec![10.0, 20.0, 30.0, f32::NAN])?;
@@ -39,7 +39,7 @@ pub use folder::{
     FolderError, SceneResult, SceneSpec,
 };
 
-use stereo_disparity::{DisparityMap, Image};
+use stereo_image::{DisparityMap, Image};
 
 /// Why metrics cannot be computed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

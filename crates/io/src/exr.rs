@@ -8,7 +8,7 @@ use exr::prelude::{
     AnyChannel, AnyChannels, Blocks, Compression, Encoding, FlatSamples, Image as ExrImage, Layer,
     LayerAttributes, LineOrder, MetaData, SmallVec, Text, WritableImage,
 };
-use stereo_disparity::Image;
+use stereo_image::Image;
 
 use crate::{format_err, write_atomic, Error};
 

@@ -8,7 +8,7 @@
 //! # Example
 //!
 //! ```
-//! use stereo_disparity::Image;
+//! use stereo_image::Image;
 //! use stereo_io::{read_pfm, write_pfm};
 //!
 //! let dir = std::env::temp_dir().join(format!("stereo-io-doctest-{}", std::process::id()));
@@ -28,7 +28,7 @@
 
 use std::path::{Path, PathBuf};
 
-use stereo_disparity::DisparityMap;
+use stereo_image::DisparityMap;
 
 mod atomic;
 mod calib;

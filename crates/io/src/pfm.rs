@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use stereo_disparity::Image;
+use stereo_image::Image;
 
 use crate::{format_err, io_err, write_atomic, Error};
 

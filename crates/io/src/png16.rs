@@ -5,7 +5,7 @@ use std::io::Cursor;
 use std::path::Path;
 
 use image::{DynamicImage, ImageBuffer, ImageFormat, Luma};
-use stereo_disparity::{DisparityMap, Image};
+use stereo_image::{DisparityMap, Image};
 
 use crate::{format_err, raster, write_atomic, Error};
 

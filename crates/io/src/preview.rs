@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use image::{ImageBuffer, Rgb};
-use stereo_disparity::Image;
+use stereo_image::Image;
 
 use crate::{format_err, Error};
 

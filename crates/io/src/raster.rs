@@ -5,21 +5,10 @@ use std::io::{BufRead, BufReader, Cursor, Seek, SeekFrom};
 use std::path::Path;
 
 use image::{DynamicImage, ImageDecoder, ImageError, ImageFormat, ImageReader, Limits};
-use stereo_disparity::{GrayImage, Image};
+// One grey conversion for files and in-memory views (stereo_image::ImageRef::to_gray16).
+use stereo_image::{expand8, luma16, GrayImage, Image};
 
 use crate::{format_err, io_err, Error};
-
-/// Rec. 601 luma of 16-bit channels, rounded, in integer arithmetic (exact for grey).
-#[inline]
-fn luma16(r: u16, g: u16, b: u16) -> u16 {
-    let y = (299 * r as u32 + 587 * g as u32 + 114 * b as u32 + 500) / 1000;
-    y as u16
-}
-
-#[inline]
-fn expand8(v: u8) -> u16 {
-    v as u16 * 257
-}
 
 #[inline]
 fn float_to_u16(v: f32) -> u16 {

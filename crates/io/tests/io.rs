@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use image::{ImageBuffer, Luma, LumaA, Rgb, Rgba};
-use stereo_disparity::Image;
+use stereo_image::Image;
 use stereo_io::{
     exr_channel_names, load_gray, load_rgb8, read_disparity, read_exr_channel, read_pfm, write_atomic,
     write_exr, write_pfm, Error,

@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use stereo_disparity::DisparityRange;
+use stereo_image::DisparityRange;
 use stereo_rectify::estimate_alignment;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

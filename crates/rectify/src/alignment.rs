@@ -7,7 +7,7 @@
 //! centre (`a`) and the rotation of the right view (`b = sin θ`).
 
 use rayon::prelude::*;
-use stereo_disparity::{DisparityRange, GrayImage};
+use stereo_image::{DisparityRange, GrayImage};
 
 /// Below this largest |offset| (px) a pair counts as aligned: matching along rows loses nothing
 /// measurable. Published, carefully rectified pairs reach 0.25 px at their edges (Middlebury

@@ -9,7 +9,7 @@
 //! # Example
 //!
 //! ```
-//! use stereo_disparity::{DisparityRange, GrayImage};
+//! use stereo_image::{DisparityRange, GrayImage};
 //! use stereo_rectify::{compensate, estimate_alignment, AlignmentVerdict};
 //!
 //! // A smooth random texture; the right view sees it 6 px to the left and 0.8 px lower.

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use stereo_disparity::{DisparityRange, GrayImage};
+use stereo_image::{DisparityRange, GrayImage};
 use stereo_rectify::{compensate, estimate_alignment, Alignment, AlignmentVerdict};
 use stereo_scene::{render, SceneParams, SplitMix64};
 

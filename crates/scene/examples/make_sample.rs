@@ -62,7 +62,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 /// Middlebury PFM: `Pf` (one channel), size, negative scale = little-endian, rows bottom to top.
-fn write_pfm(path: &Path, disparity: &stereo_disparity::DisparityMap) -> std::io::Result<()> {
+fn write_pfm(path: &Path, disparity: &stereo_image::DisparityMap) -> std::io::Result<()> {
     let (w, h) = disparity.size();
     let mut bytes = format!("Pf\n{w} {h}\n-1.0\n").into_bytes();
     for y in (0..h).rev() {

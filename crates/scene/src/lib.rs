@@ -7,7 +7,7 @@
 //! pixel's area, and the ground truth is the exact disparity of the visible surface at each pixel
 //! centre.
 //!
-//! Conventions (as in [`stereo_disparity`]): pixel `(x, y)` covers `[x - 0.5, x + 0.5) ×
+//! Conventions (as in [`stereo_image`]): pixel `(x, y)` covers `[x - 0.5, x + 0.5) ×
 //! [y - 0.5, y + 0.5)` with its centre at `(x, y)`; the left pixel `(x, y)` matches the right
 //! pixel `(x - d, y)`; nearer surfaces have larger disparities and hide farther ones.
 //!
@@ -29,7 +29,7 @@
 //! assert!(scene.occluded.get(0, 5));
 //! ```
 
-use stereo_disparity::{DisparityMap, GrayImage, Image};
+use stereo_image::{DisparityMap, GrayImage, Image};
 
 /// An axis-aligned rectangle in continuous left-image coordinates covering
 /// `[x0, x1) × [y0, y1)` (pixel `(x, y)` has its centre at `(x, y)`).

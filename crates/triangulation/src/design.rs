@@ -37,7 +37,7 @@
 use std::fmt;
 
 use serde::Serialize;
-use stereo_disparity::DisparityRange;
+use stereo_image::DisparityRange;
 
 use crate::{Error, Rig};
 

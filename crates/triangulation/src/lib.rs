@@ -9,7 +9,7 @@
 //!
 //! ```
 //! use stereo_triangulation::{depth_map, DepthStats, Rig};
-//! use stereo_disparity::DisparityMap;
+//! use stereo_image::DisparityMap;
 //!
 //! // 80 mm baseline, 12 mm lens, 4 µm pixels: f = 3000 px.
 //! let rig = Rig::from_datasheet(80.0, 12.0, 4.0)?;
@@ -36,7 +36,7 @@
 
 use nalgebra::Point3;
 use rayon::prelude::*;
-use stereo_disparity::{DisparityMap, Image};
+use stereo_image::{DisparityMap, Image};
 
 pub mod design;
 

@@ -1,6 +1,7 @@
 //! Plain row-major image buffers shared by every stage of the pipeline.
 
 use crate::Error;
+use crate::ImageRef;
 
 /// A row-major image of `width × height` samples of `T`.
 ///
@@ -91,5 +92,10 @@ impl<T: Copy> Image<T> {
 
     pub fn into_vec(self) -> Vec<T> {
         self.data
+    }
+
+    /// A borrowed view of the whole image.
+    pub fn view(&self) -> ImageRef<'_, T> {
+        ImageRef::from_parts(&self.data, self.width, self.height, self.width)
     }
 }

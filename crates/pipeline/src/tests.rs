@@ -1,0 +1,115 @@
+use stereo_scene::{render, SceneParams};
+
+use super::*;
+
+fn sgm(max: i32) -> PipelineParams {
+    PipelineParams::new(Matcher::Sgm(SgmParams {
+        range: DisparityRange::new(0, max).unwrap(),
+        ..SgmParams::default()
+    }))
+}
+
+/// Share of non-occluded ground-truth pixels where the estimate is within 1 px.
+fn good_share(result: &DisparityMap, scene: &stereo_scene::Scene) -> f64 {
+    let (mut good, mut all) = (0, 0);
+    for y in 0..result.height() {
+        for x in 0..result.width() {
+            if scene.occluded.get(x, y) {
+                continue;
+            }
+            all += 1;
+            good += usize::from((result.get(x, y) - scene.gt_left.get(x, y)).abs() <= 1.0);
+        }
+    }
+    good as f64 / all as f64
+}
+
+#[test]
+fn depth_of_a_generated_scene_matches_its_ground_truth() {
+    let scene = render(&SceneParams::default());
+    let mut params = sgm(64);
+    let rig = Rig::from_focal_px(100.0, 500.0).unwrap();
+    params.rig = Some(rig.clone());
+    let plan = Plan::new(&params, scene.left.size(), scene.right.size()).unwrap();
+    let result = plan.run_gray(&scene.left, scene.right.clone()).unwrap();
+    assert!(good_share(&result.disparity, &scene) > 0.9);
+    assert!(!result.rectification.compensated, "a perfectly rectified pair is matched as loaded");
+    // Depth is the rig's triangulation of the disparity, valid exactly where the disparity is.
+    let depth = result.depth.unwrap();
+    for (d, z) in result.disparity.as_slice().iter().zip(depth.as_slice()) {
+        assert_eq!(d.is_finite(), z.is_finite());
+        if d.is_finite() {
+            let expected = rig.depth(*d as f64).unwrap();
+            assert!((*z as f64 - expected).abs() <= 1e-5 * expected);
+        }
+    }
+}
+
+#[test]
+fn borrowed_views_give_the_same_result_as_owned_images() {
+    let scene = render(&SceneParams { width: 160, height: 96, foreground: None, ..SceneParams::default() });
+    let plan = Plan::new(&sgm(32), scene.left.size(), scene.right.size()).unwrap();
+    let owned = plan.run_gray(&scene.left, scene.right.clone()).unwrap();
+    // The same pixels inside larger buffers (a crop: rows 7 samples apart beyond the width).
+    let pad = |img: &GrayImage| -> Vec<u16> {
+        (0..img.height()).flat_map(|y| img.row(y).iter().copied().chain([9u16; 7])).collect()
+    };
+    let (l, r) = (pad(&scene.left), pad(&scene.right));
+    let (w, h) = scene.left.size();
+    let left = ImageRef::with_stride(&l, w, h, w + 7).unwrap();
+    let right = ImageRef::with_stride(&r, w, h, w + 7).unwrap();
+    let viewed = plan.run(left, right).unwrap();
+    let bits = |m: &DisparityMap| m.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&owned.disparity), bits(&viewed.disparity));
+}
+
+#[test]
+fn plans_refuse_what_cannot_be_matched_before_any_pixel_is_read() {
+    let params = sgm(64);
+    assert!(matches!(
+        Plan::new(&params, (100, 50), (101, 50)),
+        Err(Error::Matcher(stereo_disparity::Error::SizeMismatch { .. }))
+    ));
+    assert!(matches!(
+        Plan::new(&params, (40, 50), (40, 50)),
+        Err(Error::Matcher(stereo_disparity::Error::RangeWiderThanImage { count: 64, width: 40, .. }))
+    ));
+    assert!(matches!(Plan::new(&params, (0, 50), (0, 50)), Err(Error::EmptyImage { .. })));
+    let mut limited = params.clone();
+    limited.depth_limits = DepthLimits::new(Some(1.0), None).unwrap();
+    assert!(matches!(Plan::new(&limited, (100, 50), (100, 50)), Err(Error::InvalidParameter { .. })));
+    let plan = Plan::new(&params, (100, 50), (100, 50)).unwrap();
+    let small = GrayImage::new(90, 50, 0);
+    assert!(matches!(plan.run_gray(&small, small.clone()), Err(Error::PlannedFor { .. })));
+}
+
+#[test]
+fn a_memory_limit_bounds_sgm_or_fails_with_what_it_needs() {
+    let params = sgm(128);
+    let size = (2000, 1500);
+    let unbounded = Plan::new(&params, size, size).unwrap();
+    let limit = MemoryLimit { bytes: unbounded.planned_matcher_bytes() / 2, other_bytes: 0 };
+    let bounded = Plan::with_memory_limit(&params, size, size, Some(limit)).unwrap();
+    assert!(bounded.planned_matcher_bytes() <= limit.bytes);
+    let tiny = MemoryLimit { bytes: 1000, other_bytes: 0 };
+    match Plan::with_memory_limit(&params, size, size, Some(tiny)) {
+        Err(Error::TooLarge { needed, limit }) => assert!(needed > limit && limit == 1000),
+        other => panic!("expected TooLarge, got {other:?}"),
+    }
+}
+
+#[test]
+fn depth_limits_cut_every_output_alike() {
+    let scene = render(&SceneParams::default());
+    let mut params = sgm(64);
+    let rig = Rig::from_focal_px(100.0, 500.0).unwrap();
+    // The foreground box is at disparity 36, the plane at 8..~25: keep only the box.
+    let near = rig.depth(30.0).unwrap();
+    params.depth_limits = DepthLimits::new(None, Some(near)).unwrap();
+    params.rig = Some(rig);
+    let plan = Plan::new(&params, scene.left.size(), scene.right.size()).unwrap();
+    let result = plan.run_gray(&scene.left, scene.right.clone()).unwrap();
+    assert!(result.depth_limits_cut.unwrap() > 10_000);
+    assert!(result.disparity.as_slice().iter().filter(|d| d.is_finite()).all(|&d| d >= 30.0));
+    assert!(result.depth.unwrap().as_slice().iter().filter(|z| z.is_finite()).all(|&z| z as f64 <= near));
+}
