@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};
+use stereo_degrade::Degradation;
 use stereo_disparity::{BmCost, BmParams, PathCount, SgmParams, Subpixel};
 
 const AFTER_HELP: &str = "\
@@ -125,12 +126,12 @@ pub enum Command {
     /// (and calib.txt for ndisp) folders.
     EvalFolder(Box<EvalFolderArgs>),
     /// Rig design calculator: distance, disparity in mm, depth resolution, field of view, table, chart.
-    Calc(crate::calc::CalcArgs),
+    Calc(CalcArgs),
     /// Print what a file stereo-depth writes contains: EXR, PFM, PNG, PLY or stats JSON.
     Info(InfoArgs),
     /// Write a degraded copy of a pair (gain, gamma, bias, vignetting, noise, JPEG, blur, vertical
     /// shift, rotation) for robustness measurements.
-    Degrade(crate::degrade_cmd::DegradeArgs),
+    Degrade(DegradeArgs),
 }
 
 /// `stereo-depth info FILE`.
@@ -656,4 +657,171 @@ pub struct BatchMergeArgs {
     /// The OUT_DIR of the `batch --shard K/N` runs, holding summary.shard-K-of-N.json files.
     #[arg(value_name = "OUT_DIR")]
     pub out: PathBuf,
+}
+
+const CALC_AFTER_HELP: &str = "\
+Distance Z = baseline * focal / ((d + doffs) * pixel). Depth resolution is the first-order change of \
+Z for one disparity step: dZ ~ Z^2 * pixel * step / (baseline * focal), per 1 px by default, per \
+--subpixel STEP for a subpixel matcher. The working range runs from the largest searched disparity \
+(--max-disparity - 1; the default is the matcher's default for the image width when it is known, \
+else 128) to one disparity step.
+
+Examples:
+  stereo-depth calc --baseline 200 --focal 6 --pixel 2.5 --disparity 150
+  stereo-depth calc --baseline 80 --focal 12 --pixel 4 --width-px 1600 --distance 5 --subpixel 0.25
+  stereo-depth calc --baseline 80 --focal 12 --pixel 4 --table --json
+  stereo-depth calc --baseline 80 --focal 12 --pixel 4 --chart depth-range.png
+
+Exit status: 0 on success, 1 when the chart cannot be written, 2 for invalid arguments.";
+
+/// `stereo-depth calc`: distance, disparity in mm, depth resolution, field of view, working range,
+/// a table and a chart for a stereo rig, before capturing anything.
+#[derive(Debug, Args)]
+#[command(after_help = CALC_AFTER_HELP)]
+pub struct CalcArgs {
+    /// Distance between the two optical centres, in millimetres.
+    #[arg(long, value_name = "MM", allow_negative_numbers = true, help_heading = "Rig")]
+    pub baseline: f64,
+
+    /// Lens focal length, in millimetres.
+    #[arg(long, value_name = "MM", allow_negative_numbers = true, help_heading = "Rig")]
+    pub focal: f64,
+
+    /// Sensor pixel pitch, in micrometres.
+    #[arg(long, value_name = "UM", allow_negative_numbers = true, help_heading = "Rig")]
+    pub pixel: f64,
+
+    /// Sensor width, in millimetres: gives the horizontal field of view and the image width.
+    #[arg(
+        long,
+        value_name = "MM",
+        allow_negative_numbers = true,
+        conflicts_with = "width_px",
+        help_heading = "Rig"
+    )]
+    pub sensor_width: Option<f64>,
+
+    /// Image width in pixels (instead of --sensor-width: the sensor is N x pixel wide).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, help_heading = "Rig")]
+    pub width_px: Option<f64>,
+
+    /// Disparity offset between the two principal points (Middlebury's `doffs`), pixels.
+    #[arg(
+        long,
+        value_name = "PX",
+        default_value_t = 0.0,
+        allow_negative_numbers = true,
+        help_heading = "Rig"
+    )]
+    pub doffs: f64,
+
+    /// The matcher's disparity step in (0, 1] pixels: 1 for integer matching, e.g. 0.25 for
+    /// quarter-pixel subpixel refinement. Every depth resolution is per this step.
+    #[arg(
+        long,
+        value_name = "STEP",
+        default_value_t = 1.0,
+        allow_negative_numbers = true,
+        help_heading = "Matching"
+    )]
+    pub subpixel: f64,
+
+    /// End of the disparity search, as for matching (disparities 0 <= d < max are searched)
+    /// [default: a quarter of the image width rounded up to 16 when the width is known, else 128].
+    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Matching")]
+    pub max_disparity: Option<f64>,
+
+    /// Distance, disparity in mm and depth resolution at this disparity (pixels).
+    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Questions")]
+    pub disparity: Option<f64>,
+
+    /// Disparity and depth resolution at this distance (metres).
+    #[arg(long, value_name = "M", allow_negative_numbers = true, help_heading = "Questions")]
+    pub distance: Option<f64>,
+
+    /// Print a table of disparity -> distance -> depth resolution: by default from one disparity
+    /// step to the largest searched disparity in steps of x1.5 and x1.33 (1, 1.5, 2, 3, 4, 6, ...).
+    #[arg(long, help_heading = "Table")]
+    pub table: bool,
+
+    /// First disparity of the table, pixels (implies --table) [default: the disparity step].
+    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Table")]
+    pub table_min: Option<f64>,
+
+    /// Last disparity of the table, pixels (implies --table) [default: --max-disparity - 1].
+    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Table")]
+    pub table_max: Option<f64>,
+
+    /// Evenly spaced table rows this many pixels apart (implies --table) [default: geometric].
+    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Table")]
+    pub table_step: Option<f64>,
+
+    /// Print everything as JSON instead of text.
+    #[arg(long, help_heading = "Output")]
+    pub json: bool,
+
+    /// Write a chart of disparity and depth resolution against distance: PNG or SVG, by the
+    /// extension.
+    #[arg(long, value_name = "PATH.png|PATH.svg", help_heading = "Output")]
+    pub chart: Option<PathBuf>,
+}
+
+const DEGRADE_AFTER_HELP: &str = "\
+SPEC is a comma list of key=value (or `none`):
+  gain=G       global gain, clipped (0 < G <= 4)
+  gamma=Γ      v^Γ on [0, 1] (0.2 .. 5)
+  bias=B       add B grey levels of the 8-bit scale, clipped (-255 .. 255)
+  vignette=F   multiply by 1 - F·(r/r_corner)², 1 - F at the corners (0 .. 1)
+  noise=S      Gaussian noise, σ in 8-bit grey levels, per pixel and channel (0 .. 64)
+  jpeg=Q       JPEG encode + decode at quality Q (1 .. 100)
+  blur=S       defocus: Gaussian blur, σ in pixels (0 .. 10)
+  vshift=S     vertical shift in pixels, positive moves the content down (-16 .. 16)
+  rotate=D     rotation in degrees about the image centre, positive is clockwise (-5 .. 5)
+Stages run in camera order: shift/rotation (one bicubic resampling, borders replicated)
+→ blur → vignetting → gain → bias → gamma → noise → JPEG. A per-view spec (--left, --right)
+overrides the same keys of --both. Each view gets its own noise (seeds derived from --seed),
+so noise and JPEG from --both are independent per view. Alpha channels are dropped.
+
+Example:
+  stereo-depth degrade im0.png im1.png --out deg --right gain=1.6,vshift=0.5 --both noise=3";
+
+/// `stereo-depth degrade LEFT RIGHT --out DIR [--left SPEC] [--right SPEC] [--both SPEC]`.
+#[derive(Debug, Args)]
+#[command(after_help = DEGRADE_AFTER_HELP)]
+pub struct DegradeArgs {
+    /// Left image of the pair: PNG, PGM/PPM or JPEG, 8 or 16 bit, grey or RGB.
+    #[arg(value_name = "LEFT")]
+    pub left: PathBuf,
+
+    /// Right image of the pair.
+    #[arg(value_name = "RIGHT")]
+    pub right: PathBuf,
+
+    /// Folder to write left.png and right.png to (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+
+    /// Degradations of the left view.
+    #[arg(long = "left", value_name = "SPEC", value_parser = parse_spec)]
+    pub left_spec: Option<Degradation>,
+
+    /// Degradations of the right view.
+    #[arg(long = "right", value_name = "SPEC", value_parser = parse_spec)]
+    pub right_spec: Option<Degradation>,
+
+    /// Degradations of both views (noise and JPEG drawn independently per view).
+    #[arg(long = "both", value_name = "SPEC", value_parser = parse_spec)]
+    pub both_spec: Option<Degradation>,
+
+    /// Seed of the noise.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub seed: u64,
+
+    /// Print nothing on stdout.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+fn parse_spec(spec: &str) -> Result<Degradation, String> {
+    spec.parse().map_err(|e: stereo_degrade::Error| e.to_string())
 }

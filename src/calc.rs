@@ -4,181 +4,33 @@
 
 use std::fmt::Write as _;
 use std::io::Write;
-use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use clap::Args;
 use serde::Serialize;
-use stereo_chart::{DepthChart, Format, Marker, Sample};
-use stereo_triangulation::design::{
-    sig, Design, DesignError, DesignInput, MaxDisparitySource, Param, Point, SensorWidth, TableSpec,
-};
+use stereo_chart::{DepthChart, Marker, Sample};
+use stereo_triangulation::design::{sig, Design, MaxDisparitySource, Point};
 
-use crate::config::UsageError;
+use crate::config::CalcConfig;
 
-const AFTER_HELP: &str = "\
-Distance Z = baseline * focal / ((d + doffs) * pixel). Depth resolution is the first-order change of \
-Z for one disparity step: dZ ~ Z^2 * pixel * step / (baseline * focal), per 1 px by default, per \
---subpixel STEP for a subpixel matcher. The working range runs from the largest searched disparity \
-(--max-disparity - 1; the default is the matcher's default for the image width when it is known, \
-else 128) to one disparity step.
-
-Examples:
-  stereo-depth calc --baseline 200 --focal 6 --pixel 2.5 --disparity 150
-  stereo-depth calc --baseline 80 --focal 12 --pixel 4 --width-px 1600 --distance 5 --subpixel 0.25
-  stereo-depth calc --baseline 80 --focal 12 --pixel 4 --table --json
-  stereo-depth calc --baseline 80 --focal 12 --pixel 4 --chart depth-range.png
-
-Exit status: 0 on success, 1 when the chart cannot be written, 2 for invalid arguments.";
-
-/// `stereo-depth calc`: distance, disparity in mm, depth resolution, field of view, working range,
-/// a table and a chart for a stereo rig, before capturing anything.
-#[derive(Debug, Args)]
-#[command(after_help = AFTER_HELP)]
-pub struct CalcArgs {
-    /// Distance between the two optical centres, in millimetres.
-    #[arg(long, value_name = "MM", allow_negative_numbers = true, help_heading = "Rig")]
-    pub baseline: f64,
-
-    /// Lens focal length, in millimetres.
-    #[arg(long, value_name = "MM", allow_negative_numbers = true, help_heading = "Rig")]
-    pub focal: f64,
-
-    /// Sensor pixel pitch, in micrometres.
-    #[arg(long, value_name = "UM", allow_negative_numbers = true, help_heading = "Rig")]
-    pub pixel: f64,
-
-    /// Sensor width, in millimetres: gives the horizontal field of view and the image width.
-    #[arg(
-        long,
-        value_name = "MM",
-        allow_negative_numbers = true,
-        conflicts_with = "width_px",
-        help_heading = "Rig"
-    )]
-    pub sensor_width: Option<f64>,
-
-    /// Image width in pixels (instead of --sensor-width: the sensor is N x pixel wide).
-    #[arg(long, value_name = "N", allow_negative_numbers = true, help_heading = "Rig")]
-    pub width_px: Option<f64>,
-
-    /// Disparity offset between the two principal points (Middlebury's `doffs`), pixels.
-    #[arg(
-        long,
-        value_name = "PX",
-        default_value_t = 0.0,
-        allow_negative_numbers = true,
-        help_heading = "Rig"
-    )]
-    pub doffs: f64,
-
-    /// The matcher's disparity step in (0, 1] pixels: 1 for integer matching, e.g. 0.25 for
-    /// quarter-pixel subpixel refinement. Every depth resolution is per this step.
-    #[arg(
-        long,
-        value_name = "STEP",
-        default_value_t = 1.0,
-        allow_negative_numbers = true,
-        help_heading = "Matching"
-    )]
-    pub subpixel: f64,
-
-    /// End of the disparity search, as for matching (disparities 0 <= d < max are searched)
-    /// [default: a quarter of the image width rounded up to 16 when the width is known, else 128].
-    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Matching")]
-    pub max_disparity: Option<f64>,
-
-    /// Distance, disparity in mm and depth resolution at this disparity (pixels).
-    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Questions")]
-    pub disparity: Option<f64>,
-
-    /// Disparity and depth resolution at this distance (metres).
-    #[arg(long, value_name = "M", allow_negative_numbers = true, help_heading = "Questions")]
-    pub distance: Option<f64>,
-
-    /// Print a table of disparity -> distance -> depth resolution: by default from one disparity
-    /// step to the largest searched disparity in steps of x1.5 and x1.33 (1, 1.5, 2, 3, 4, 6, ...).
-    #[arg(long, help_heading = "Table")]
-    pub table: bool,
-
-    /// First disparity of the table, pixels (implies --table) [default: the disparity step].
-    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Table")]
-    pub table_min: Option<f64>,
-
-    /// Last disparity of the table, pixels (implies --table) [default: --max-disparity - 1].
-    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Table")]
-    pub table_max: Option<f64>,
-
-    /// Evenly spaced table rows this many pixels apart (implies --table) [default: geometric].
-    #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Table")]
-    pub table_step: Option<f64>,
-
-    /// Print everything as JSON instead of text.
-    #[arg(long, help_heading = "Output")]
-    pub json: bool,
-
-    /// Write a chart of disparity and depth resolution against distance: PNG or SVG, by the
-    /// extension.
-    #[arg(long, value_name = "PATH.png|PATH.svg", help_heading = "Output")]
-    pub chart: Option<PathBuf>,
-}
-
-impl CalcArgs {
-    fn input(&self) -> DesignInput {
-        let sensor = match (self.sensor_width, self.width_px) {
-            (Some(mm), _) => Some(SensorWidth::Mm(mm)),
-            (None, Some(px)) => Some(SensorWidth::Px(px)),
-            (None, None) => None,
-        };
-        let table = (self.table
-            || self.table_min.is_some()
-            || self.table_max.is_some()
-            || self.table_step.is_some())
-        .then_some(TableSpec { min_px: self.table_min, max_px: self.table_max, step_px: self.table_step });
-        DesignInput {
-            baseline_mm: self.baseline,
-            focal_mm: self.focal,
-            pixel_um: self.pixel,
-            doffs_px: self.doffs,
-            subpixel_step_px: self.subpixel,
-            sensor,
-            max_disparity_px: self.max_disparity,
-            disparity_px: self.disparity,
-            distance_m: self.distance,
-            table,
-        }
-    }
-}
-
-/// Runs `calc`: checks the arguments (a [`UsageError`] naming the flag and its accepted range),
-/// writes the chart if asked (atomically), then prints the text or JSON report on `out`.
-pub fn run(args: CalcArgs, out: &mut impl Write) -> Result<()> {
-    let chart_format = match &args.chart {
-        None => None,
-        Some(path) => Some(Format::from_path(path).ok_or_else(|| {
-            UsageError(format!("invalid --chart {} (must end in .png or .svg)", path.display()))
-        })?),
-    };
-    let design = Design::new(&args.input()).map_err(usage)?;
-    crate::checks::print_warnings(&crate::checks::rig_warnings(
-        Some((args.baseline, crate::checks::BaselineSource::Flag)),
-        Some(args.pixel),
-    ));
-
-    if let (Some(path), Some(format)) = (&args.chart, chart_format) {
-        let bytes = stereo_chart::render(&chart(&design), format, stereo_chart::DEFAULT_SIZE)
+/// Runs `calc`: prints the rig warnings, writes the chart if asked (atomically), then prints
+/// the text or JSON report on `out`.
+pub fn run(config: &CalcConfig, out: &mut impl Write) -> Result<()> {
+    crate::checks::print_warnings(&config.warnings);
+    let design = &config.design;
+    if let Some((path, format)) = &config.chart {
+        let bytes = stereo_chart::render(&chart(design), *format, stereo_chart::DEFAULT_SIZE)
             .context("cannot draw the chart")?;
         stereo_io::write_atomic(path, &bytes).context("cannot write the chart")?;
     }
 
-    let chart = args.chart.as_ref().map(|p| p.display().to_string());
-    let text = if args.json {
-        let report = Report { design: &design, depth_resolution: RESOLUTION_FORMULA, chart };
+    let chart = config.chart.as_ref().map(|(p, _)| p.display().to_string());
+    let text = if config.json {
+        let report = Report { design, depth_resolution: RESOLUTION_FORMULA, chart };
         let mut json = serde_json::to_string_pretty(&report).context("cannot serialise the design")?;
         json.push('\n');
         json
     } else {
-        let mut text = report(&design);
+        let mut text = report(design);
         if let Some(path) = chart {
             let _ = writeln!(text, "\nchart: {path}");
         }
@@ -198,26 +50,6 @@ struct Report<'a> {
     design: &'a Design,
     depth_resolution: &'static str,
     chart: Option<String>,
-}
-
-/// The library names parameters in words; the user knows them by their flags.
-fn usage(err: DesignError) -> UsageError {
-    let flag = match err.param {
-        Param::Baseline => "--baseline",
-        Param::Focal => "--focal",
-        Param::Pixel => "--pixel",
-        Param::Doffs => "--doffs",
-        Param::SubpixelStep => "--subpixel",
-        Param::SensorWidth => "--sensor-width",
-        Param::WidthPx => "--width-px",
-        Param::MaxDisparity => "--max-disparity",
-        Param::Disparity => "--disparity",
-        Param::Distance => "--distance",
-        Param::TableMin => "--table-min",
-        Param::TableMax => "--table-max",
-        Param::TableStep => "--table-step",
-    };
-    UsageError(format!("invalid {flag} {} {} (must be {})", err.value, err.unit, err.expected))
 }
 
 /// Four significant digits.

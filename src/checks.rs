@@ -4,7 +4,7 @@
 use serde::Serialize;
 use stereo_pipeline::{DepthLimits, Rig};
 
-use crate::config::UsageError;
+use crate::error::UsageError;
 
 /// `--min-depth` / `--max-depth`, checked: each finite and > 0, min below max; `None` when
 /// neither flag is given. The messages name the flags; the pipeline's own check

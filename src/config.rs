@@ -1,38 +1,23 @@
 //! Checked, resolved settings built from the raw command line. Everything that can be checked
 //! without reading the images is checked here, so a bad argument fails before any work is done.
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 
+use stereo_chart::Format as ChartFormat;
+use stereo_degrade::Degradation;
 use stereo_disparity::{BmCost, BmParams, DisparityRange, PathCount, Preset, SgmParams, Subpixel};
+use stereo_triangulation::design::{Design, DesignError, DesignInput, Param, SensorWidth, TableSpec};
 use stereo_triangulation::Rig;
 
 use stereo_io::Calib;
 
 use crate::args::{
-    BatchArgs, BatchMergeArgs, BmCostArg, DepthLimitArgs, EvalArgs, MatchArgs, MatcherArg, PairArgs,
-    PathsArg, PresetArg, PreviewOfArg, RigArgs, SubpixelArg,
+    BatchArgs, BatchMergeArgs, BmCostArg, CalcArgs, DegradeArgs, DepthLimitArgs, EvalArgs, EvalFolderArgs,
+    MatchArgs, MatcherArg, PairArgs, PathsArg, PresetArg, PreviewOfArg, RigArgs, SubpixelArg,
 };
 use crate::checks::{self, BaselineSource};
 use crate::discover::{Pattern, Shard};
-
-/// An invalid argument: reported like clap's own errors, with exit status 2.
-#[derive(Debug)]
-pub struct UsageError(pub String);
-
-impl fmt::Display for UsageError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for UsageError {}
-
-macro_rules! usage {
-    ($($arg:tt)*) => {
-        UsageError(format!($($arg)*))
-    };
-}
+use crate::error::UsageError;
 
 /// The rig as the user gave it (datasheet units), kept for the report. The focal length and
 /// pixel pitch are `None` when the focal length came in pixels (--focal-px or a Middlebury
@@ -906,5 +891,122 @@ mod tests {
         assert!(bare(&["x", "l.png", "r.png", "--preview", "p.png", "--preview-of", "disparity"]).is_ok());
         let err = bare(&["x", "l.png", "r.png", "--stats", "s.json"]).unwrap_err().0;
         assert!(err.starts_with("nothing to write") && err.contains("--disparity"), "{err}");
+    }
+}
+
+/// The checked settings of `calc`: the design (every number in range), the chart to draw.
+#[derive(Debug)]
+pub struct CalcConfig {
+    pub design: Design,
+    /// The chart's path and format (by its extension).
+    pub chart: Option<(PathBuf, ChartFormat)>,
+    pub json: bool,
+    /// Unit-mistake warnings for the rig, printed once the arguments are known to be valid.
+    pub warnings: Vec<String>,
+}
+
+impl CalcConfig {
+    pub fn from_args(args: CalcArgs) -> Result<Self, UsageError> {
+        let chart = match &args.chart {
+            None => None,
+            Some(path) => Some((
+                path.clone(),
+                ChartFormat::from_path(path)
+                    .ok_or_else(|| usage!("invalid --chart {} (must end in .png or .svg)", path.display()))?,
+            )),
+        };
+        let design = Design::new(&design_input(&args)).map_err(design_usage)?;
+        let warnings = checks::rig_warnings(Some((args.baseline, BaselineSource::Flag)), Some(args.pixel));
+        Ok(CalcConfig { design, chart, json: args.json, warnings })
+    }
+}
+
+fn design_input(args: &CalcArgs) -> DesignInput {
+    let sensor = match (args.sensor_width, args.width_px) {
+        (Some(mm), _) => Some(SensorWidth::Mm(mm)),
+        (None, Some(px)) => Some(SensorWidth::Px(px)),
+        (None, None) => None,
+    };
+    let table = (args.table
+        || args.table_min.is_some()
+        || args.table_max.is_some()
+        || args.table_step.is_some())
+    .then_some(TableSpec { min_px: args.table_min, max_px: args.table_max, step_px: args.table_step });
+    DesignInput {
+        baseline_mm: args.baseline,
+        focal_mm: args.focal,
+        pixel_um: args.pixel,
+        doffs_px: args.doffs,
+        subpixel_step_px: args.subpixel,
+        sensor,
+        max_disparity_px: args.max_disparity,
+        disparity_px: args.disparity,
+        distance_m: args.distance,
+        table,
+    }
+}
+
+/// Checked settings of the degrade command.
+#[derive(Debug)]
+pub struct DegradeConfig {
+    pub left: PathBuf,
+    pub right: PathBuf,
+    pub out: PathBuf,
+    pub left_spec: Degradation,
+    pub right_spec: Degradation,
+    pub seed: u64,
+    pub quiet: bool,
+}
+
+impl DegradeConfig {
+    pub fn from_args(args: DegradeArgs) -> Result<Self, UsageError> {
+        if args.out.is_file() {
+            return Err(UsageError(format!("--out {}: is a file, want a folder", args.out.display())));
+        }
+        let both = args.both_spec.unwrap_or_default();
+        Ok(DegradeConfig {
+            left_spec: args.left_spec.unwrap_or_default().over(&both),
+            right_spec: args.right_spec.unwrap_or_default().over(&both),
+            left: args.left,
+            right: args.right,
+            out: args.out,
+            seed: args.seed,
+            quiet: args.quiet,
+        })
+    }
+}
+
+/// The library names parameters in words; the user knows them by their flags.
+fn design_usage(err: DesignError) -> UsageError {
+    let flag = match err.param {
+        Param::Baseline => "--baseline",
+        Param::Focal => "--focal",
+        Param::Pixel => "--pixel",
+        Param::Doffs => "--doffs",
+        Param::SubpixelStep => "--subpixel",
+        Param::SensorWidth => "--sensor-width",
+        Param::WidthPx => "--width-px",
+        Param::MaxDisparity => "--max-disparity",
+        Param::Disparity => "--disparity",
+        Param::Distance => "--distance",
+        Param::TableMin => "--table-min",
+        Param::TableMax => "--table-max",
+        Param::TableStep => "--table-step",
+    };
+    UsageError(format!("invalid {flag} {} {} (must be {})", err.value, err.unit, err.expected))
+}
+
+/// The checked settings of `eval-folder`.
+#[derive(Debug)]
+pub struct EvalFolderConfig {
+    pub dir: PathBuf,
+    pub settings: MatchSettings,
+    pub json: bool,
+}
+
+impl EvalFolderConfig {
+    pub fn from_args(args: EvalFolderArgs) -> Result<Self, UsageError> {
+        let settings = MatchSettings::from_args(&args.matching)?;
+        Ok(EvalFolderConfig { dir: args.dir, settings, json: args.json })
     }
 }

@@ -7,12 +7,12 @@ use std::io::Write;
 use anyhow::{Context, Result};
 use stereo_pipeline::{DisparityRange, PipelineParams, Plan};
 
-use crate::args::EvalFolderArgs;
-use crate::config::{MatchSettings, UsageError};
+use crate::config::EvalFolderConfig;
+use crate::error::UsageError;
 
-pub fn run(args: &EvalFolderArgs, out: &mut impl Write) -> Result<()> {
-    let settings = MatchSettings::from_args(&args.matching)?;
-    let results = stereo_eval::try_evaluate_folder(&args.dir, |left, right, ndisp| {
+pub fn run(config: &EvalFolderConfig, out: &mut impl Write) -> Result<()> {
+    let settings = &config.settings;
+    let results = stereo_eval::try_evaluate_folder(&config.dir, |left, right, ndisp| {
         let max = match settings.max_disparity {
             Some(max) => max,
             None => settings.min_disparity + ndisp as i32,
@@ -28,10 +28,10 @@ pub fn run(args: &EvalFolderArgs, out: &mut impl Write) -> Result<()> {
         let plan = Plan::new(&params, left.size(), right.size()).map_err(|e| UsageError(e.to_string()))?;
         plan.run_gray(left, right.clone())
             .map(|result| result.disparity)
-            .map_err(|e| anyhow::Error::new(e).context(format!("{}: matching failed", args.dir.display())))
+            .map_err(|e| anyhow::Error::new(e).context(format!("{}: matching failed", config.dir.display())))
     })
-    .with_context(|| format!("cannot evaluate {}", args.dir.display()))?;
-    if args.json {
+    .with_context(|| format!("cannot evaluate {}", config.dir.display()))?;
+    if config.json {
         let average = stereo_eval::average(&results);
         let json = serde_json::json!({ "scenes": results, "average": average });
         writeln!(out, "{}", serde_json::to_string_pretty(&json)?)?;

@@ -9,7 +9,8 @@ use stereo_io::ImageHeader;
 
 use stereo_pipeline::{Matcher, MemoryLimit};
 
-use crate::config::{Limits, UsageError};
+use crate::config::Limits;
+use crate::error::UsageError;
 
 /// The header of one input image, checked against `--max-pixels`.
 pub fn probe(path: &Path, limits: &Limits) -> Result<ImageHeader> {

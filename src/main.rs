@@ -4,6 +4,8 @@
 //! missing, unreadable, mismatched, unwritable), 2 usage errors (clap's and our own argument
 //! checks). A closed stdout (`stereo-depth ... | head`) ends the program normally.
 
+#[macro_use]
+mod error;
 mod args;
 mod batch;
 mod calc;
@@ -26,7 +28,10 @@ use anyhow::Context;
 use clap::error::{ContextKind, ContextValue, ErrorKind};
 
 use crate::args::{Cli, Command};
-use crate::config::{BatchConfig, BatchMergeConfig, EvalConfig, PairConfig, UsageError};
+use crate::config::{
+    BatchConfig, BatchMergeConfig, CalcConfig, DegradeConfig, EvalConfig, EvalFolderConfig, PairConfig,
+};
+use crate::error::{one_line, UsageError};
 
 fn main() -> ExitCode {
     match run() {
@@ -66,13 +71,19 @@ fn run() -> anyhow::Result<ExitCode> {
             let config = BatchMergeConfig::from_args(args)?;
             return batch::merge(&config, &mut stdout);
         }
-        Some(Command::Calc(args)) => calc::run(args, &mut stdout)?,
+        Some(Command::Calc(args)) => {
+            let config = CalcConfig::from_args(args)?;
+            calc::run(&config, &mut stdout)?;
+        }
         Some(Command::Info(args)) => info::run(&args.file, &mut stdout)?,
         Some(Command::Degrade(args)) => {
-            let config = degrade_cmd::DegradeConfig::from_args(args)?;
+            let config = DegradeConfig::from_args(args)?;
             degrade_cmd::run(&config, &mut stdout)?;
         }
-        Some(Command::EvalFolder(args)) => eval_folder::run(&args, &mut stdout)?,
+        Some(Command::EvalFolder(args)) => {
+            let config = EvalFolderConfig::from_args(*args)?;
+            eval_folder::run(&config, &mut stdout)?;
+        }
         Some(Command::Eval(args)) => {
             let config = EvalConfig::from_args(args)?;
             eval_cmd::run(&config, &mut stdout)?;
@@ -134,21 +145,4 @@ fn missing_arguments(err: &clap::Error) -> Option<String> {
 fn is_broken_pipe(err: &anyhow::Error) -> bool {
     err.chain()
         .any(|cause| cause.downcast_ref::<io::Error>().is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe))
-}
-
-/// The error chain as one line. Library errors already name their file and often repeat their
-/// source's message, so a cause whose text is already there is left out.
-fn one_line(err: &anyhow::Error) -> String {
-    let mut message = String::new();
-    for cause in err.chain() {
-        let text = cause.to_string();
-        if message.contains(&text) {
-            continue;
-        }
-        if !message.is_empty() {
-            message.push_str(": ");
-        }
-        message.push_str(&text);
-    }
-    message.replace(['\r', '\n'], " ")
 }

@@ -9,7 +9,8 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use stereo_pipeline::{Plan, Rectification};
 
-use crate::config::{PairConfig, UsageError};
+use crate::config::PairConfig;
+use crate::error::UsageError;
 use crate::limits;
 use crate::report::{self, StageTimes, Stats};
 use crate::writers::{self, Written};

@@ -25,8 +25,9 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::checks;
-use crate::config::{BatchConfig, BatchMergeConfig, PairConfig, UsageError};
+use crate::config::{BatchConfig, BatchMergeConfig, PairConfig};
 use crate::discover::{self, PairSpec};
+use crate::error::UsageError;
 use crate::pair;
 use crate::report::Stats;
 use summary::{Row, Status, Summary, UnpairedRow};
@@ -231,7 +232,7 @@ fn run_job(config: &BatchConfig, job: &Job) -> Row {
             Ok(stats) => fill(&mut row, &stats),
             Err(err) => {
                 row.status = Status::Failed;
-                row.error = Some(crate::one_line(&err));
+                row.error = Some(crate::error::one_line(&err));
             }
         }
     }

@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use crate::{GrayImage, Image};
+use crate::{DisparityMap, GrayImage, Image};
 
 /// The `factor × factor` box average of `image` (partial blocks at the right and bottom are
 /// dropped), 8-bit samples stored ×257 when the input is 8-bit.
@@ -53,8 +53,14 @@ pub(crate) struct CoarseMatch {
 }
 
 impl CoarseMatch {
-    /// `None` when the pair is too small to match at a quarter of its size.
-    pub(crate) fn new(left: &GrayImage, right: &GrayImage, params: &crate::SgmParams) -> Option<Self> {
+    /// `None` when the pair is too small to match at a quarter of its size. `sgm` is the matcher
+    /// itself, passed in because it adapts to what this module measures (no import circle).
+    pub(crate) fn new(
+        left: &GrayImage,
+        right: &GrayImage,
+        params: &crate::SgmParams,
+        sgm: impl FnOnce(&GrayImage, &GrayImage, &crate::SgmParams) -> Result<DisparityMap, crate::Error>,
+    ) -> Option<Self> {
         let factor = 4;
         let (l, r) = (downsample(left, factor), downsample(right, factor));
         let (cw, ch) = l.size();
@@ -77,7 +83,7 @@ impl CoarseMatch {
             max_memory: None,
             ..params.clone()
         };
-        let disparity = crate::sgm(&l, &r, &coarse).ok()?;
+        let disparity = sgm(&l, &r, &coarse).ok()?;
         Some(CoarseMatch { factor, left: l, right: r, disparity })
     }
 

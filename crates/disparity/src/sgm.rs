@@ -108,7 +108,7 @@ pub(crate) fn adapt_to_pair(
     census: impl Fn(&GrayImage, crate::CensusWindow, &mut Image<u64>) + Sync,
 ) -> (SgmParams, Image<u64>, Image<u64>, Adaptation) {
     let (width, height) = left.size();
-    let coarse = params.adapt_to_pair.then(|| CoarseMatch::new(left, right, params)).flatten();
+    let coarse = params.adapt_to_pair.then(|| CoarseMatch::new(left, right, params, sgm)).flatten();
     let radiometric_difference = coarse.as_ref().and_then(CoarseMatch::radiometric_difference);
     let intensity_term = keeps_intensity_term(params, radiometric_difference);
     let matching_cost = if intensity_term { params.matching_cost } else { MatchingCost::Census };

@@ -88,7 +88,10 @@ fn a_memory_limit_bounds_sgm_or_fails_with_what_it_needs() {
     let params = sgm(128);
     let size = (2000, 1500);
     let unbounded = Plan::new(&params, size, size).unwrap();
-    let limit = MemoryLimit { bytes: unbounded.planned_matcher_bytes() / 2, other_bytes: 0 };
+    let least = params.matcher.minimum_bytes(size.0, size.1);
+    assert!(least < unbounded.planned_matcher_bytes(), "strips need less than the whole pair at once");
+    let limit =
+        MemoryLimit { bytes: least + (unbounded.planned_matcher_bytes() - least) / 2, other_bytes: 0 };
     let bounded = Plan::with_memory_limit(&params, size, size, Some(limit)).unwrap();
     assert!(bounded.planned_matcher_bytes() <= limit.bytes);
     let tiny = MemoryLimit { bytes: 1000, other_bytes: 0 };
