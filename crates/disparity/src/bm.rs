@@ -75,6 +75,7 @@ pub fn block_match(left: &GrayImage, right: &GrayImage, params: &BmParams) -> Re
         .par_chunks_mut(strip * width)
         .enumerate()
         .for_each(|(i, out)| matcher.strip(r + i * strip, out));
+    crate::far_islands::reject_far_islands(&mut disparity, params.range, f32::NAN);
     Ok(disparity)
 }
 
