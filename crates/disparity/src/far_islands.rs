@@ -23,14 +23,15 @@ const MAX_STEP: f32 = 1.0;
 /// The surroundings are summarised on a grid of square tiles this many pixels wide.
 const TILE: usize = 16;
 
-/// How far around a pixel its surroundings reach, in tiles (4 tiles: a 144 × 144 px window), so
-/// that an island inside the left band also sees the scene beyond it.
-const REACH: usize = 4;
+/// How far around a pixel its surroundings reach, in tiles, at least (4 tiles: a 144 × 144 px
+/// window); at least the largest disparity too, so that an island inside the left band (where
+/// little but such islands is valid) also sees the scene beyond it.
+const MIN_REACH: usize = 4;
 
 /// Rejects every island (4-connected region of valid pixels whose neighbours differ by at most
 /// [`MAX_STEP`]) of fewer than [`MAX_ISLAND`] pixels all of whose disparities are below half the
-/// median valid disparity of their surroundings (the window of [`REACH`] tiles around each
-/// pixel's tile, which must hold at least [`MAX_ISLAND`] valid pixels): a depth more than twice
+/// median valid disparity of their surroundings (the window of tiles within [`MIN_REACH`] tiles, and
+/// within the largest disparity, of each pixel's tile, which must hold at least [`MAX_ISLAND`] valid pixels): a depth more than twice
 /// that of the scene around it. Rejected pixels become `invalid` (a tagged NaN in the SGM
 /// pipeline, [`PixelStatus::FarIsland`]). Returns how many were rejected. O(W·H + tiles·D).
 pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityRange, invalid: f32) -> usize {
@@ -105,7 +106,7 @@ pub(crate) fn reject_far_islands_tagged(disparity: &mut DisparityMap, range: Dis
     reject_far_islands(disparity, range, tagged_nan(PixelStatus::FarIsland))
 }
 
-/// Per tile, the median valid disparity in the window of tiles within [`REACH`] of it (0 when
+/// Per tile, the median valid disparity in the window of tiles within the reach ([`MIN_REACH`], or the largest disparity) of it (0 when
 /// the window holds fewer than [`MAX_ISLAND`] valid pixels): per-tile histograms of the integer
 /// disparity, summed over the window through a summed-area table, the median interpolated within
 /// its bin.
@@ -133,12 +134,13 @@ fn surroundings(disparity: &DisparityMap, range: DisparityRange) -> Vec<f32> {
             }
         }
     }
+    let reach = MIN_REACH.max((range.max.max(0) as usize).div_ceil(TILE));
     let mut hist = vec![0u32; bins];
     let mut out = vec![0.0f32; tw * th];
     for ty in 0..th {
-        let (y0, y1) = (ty.saturating_sub(REACH), (ty + REACH + 1).min(th));
+        let (y0, y1) = (ty.saturating_sub(reach), (ty + reach + 1).min(th));
         for tx in 0..tw {
-            let (x0, x1) = (tx.saturating_sub(REACH), (tx + REACH + 1).min(tw));
+            let (x0, x1) = (tx.saturating_sub(reach), (tx + reach + 1).min(tw));
             let at = |y: usize, x: usize| y * stride + x * bins;
             let (a, b, c, e) = (at(y1, x1), at(y0, x1), at(y1, x0), at(y0, x0));
             let mut total = 0u64;
