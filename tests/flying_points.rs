@@ -60,3 +60,27 @@ fn no_disparity_at_or_below_zero_and_no_point_far_behind_the_scene() {
         assert_eq!(ply.vertex_count, depth.as_slice().iter().filter(|z| z.is_finite()).count(), "{extra:?}");
     }
 }
+
+/// Far islands (docs/robustness.md): on a noisy pair the left band (where the true match has left
+/// the right image) keeps small islands of interior winners far behind the scene that pass the
+/// left-right check. Before they were rejected, 0.04 % of the valid pixels of this pair lay beyond
+/// twice the farthest depth; the bar is 0.02 %.
+#[test]
+fn no_far_islands_on_a_noisy_pair() {
+    let dir = tempfile::tempdir().unwrap();
+    let (left, right) = (slanted("left.png"), slanted("right.png"));
+    let run = run_in(dir.path(), &["degrade", "--out", "noisy", "--both", "noise=12", s(&left), s(&right)]);
+    assert_eq!(run.code, Some(0), "{}", run.stderr);
+    let gt = stereo_io::read_pfm(&slanted("disp0GT.pfm")).unwrap();
+    let gt_min = gt.as_slice().iter().copied().filter(|d| d.is_finite()).fold(f32::INFINITY, f32::min);
+    for matcher in ["sgm", "bm"] {
+        let args = ["noisy/left.png", "noisy/right.png", "--max-disparity", "64", "--matcher", matcher];
+        let run = run_in(dir.path(), &[&args[..], &["--disparity", "d.pfm", "--quiet"]].concat());
+        assert_eq!(run.code, Some(0), "{matcher}: {}", run.stderr);
+        let disparity = stereo_io::read_pfm(&dir.path().join("d.pfm")).unwrap();
+        let valid: Vec<f32> = disparity.as_slice().iter().copied().filter(|d| d.is_finite()).collect();
+        assert!(valid.len() > disparity.as_slice().len() / 2, "{matcher}: only {} valid", valid.len());
+        let far = valid.iter().filter(|&&d| d < gt_min / 2.0).count();
+        assert!(far * 5000 <= valid.len(), "{matcher}: {far} of {} valid pixels beyond 2x the scene", valid.len());
+    }
+}

@@ -28,6 +28,8 @@ const SOBEL_CAP: i32 = 31 * 257;
 /// disparity away; ties are rejected), or the left-right check fails: the right view's integer
 /// WTA disparity from the same costs at `x - round(d)` differs from `d` by more than
 /// `lr_max_diff`. Subpixel refinement needs both neighbouring disparities to be searched.
+/// Small islands more than twice as far as the scene around them are then invalidated, as in SGM
+/// (`PixelStatus::FarIsland`, docs/robustness.md).
 pub fn block_match(left: &GrayImage, right: &GrayImage, params: &BmParams) -> Result<DisparityMap, Error> {
     check_pair(left, right)?;
     let (width, height) = left.size();
@@ -75,6 +77,7 @@ pub fn block_match(left: &GrayImage, right: &GrayImage, params: &BmParams) -> Re
         .par_chunks_mut(strip * width)
         .enumerate()
         .for_each(|(i, out)| matcher.strip(r + i * strip, out));
+    crate::far_islands::reject_far_islands(&mut disparity, params.range, f32::NAN);
     Ok(disparity)
 }
 

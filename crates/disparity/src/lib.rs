@@ -26,6 +26,7 @@ mod buffer;
 mod census;
 mod confidence;
 mod cost;
+mod far_islands;
 mod fill;
 mod filter;
 mod memory;

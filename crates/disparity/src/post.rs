@@ -108,9 +108,10 @@ pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRa
     }
 }
 
-/// Speckle removal, the status image (plain NaNs from here on), the fill, edge snapping and the
+/// Far islands ([`crate::far_islands`]), speckle removal, the status image (plain NaNs from here on), the fill, edge snapping and the
 /// weighted median.
 pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params: &SgmParams) -> SgmOutput {
+    crate::far_islands::reject_far_islands_tagged(&mut disparity, params.range);
     remove_speckles(&mut disparity, params.speckle_size, params.speckle_max_diff);
     let status = untag(&mut disparity);
     if params.fill {

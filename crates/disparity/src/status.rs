@@ -27,6 +27,11 @@ pub enum PixelStatus {
     /// ends, or the last disparity that stays inside the right image): the true minimum may lie
     /// outside, so the match is not trusted (these are the "flying points" of a depth map).
     RangeEnd = 6,
+    /// Part of a small island (fewer than [`crate::DENSE_SPECKLE_SIZE`] pixels of similar
+    /// disparity) whose disparities are all below half the median disparity around it: more
+    /// than twice as far as the scene there, which the matcher cannot tell from a wrong match
+    /// (mostly near the left border, where the true match has left the right image).
+    FarIsland = 7,
 }
 
 impl PixelStatus {
@@ -39,6 +44,7 @@ impl PixelStatus {
             4 => PixelStatus::Mismatch,
             5 => PixelStatus::Speckle,
             6 => PixelStatus::RangeEnd,
+            7 => PixelStatus::FarIsland,
             _ => PixelStatus::NoMatch,
         }
     }
@@ -89,6 +95,8 @@ mod tests {
             PixelStatus::Occluded,
             PixelStatus::Mismatch,
             PixelStatus::Speckle,
+            PixelStatus::RangeEnd,
+            PixelStatus::FarIsland,
         ] {
             let v = tagged_nan(s);
             assert!(v.is_nan());
