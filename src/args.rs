@@ -3,9 +3,12 @@
 
 use std::path::PathBuf;
 
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};
 use stereo_degrade::Degradation;
-use stereo_disparity::{BmCost, BmParams, PathCount, SgmParams, Subpixel};
+use stereo_pipeline::{
+    parse_named, BmCost, BmParams, MatcherKind, Named, PathCount, Preset, SgmParams, Subpixel,
+};
 
 const AFTER_HELP: &str = "\
 Without a subcommand, stereo-depth matches the rectified pair LEFT RIGHT and writes a metric depth \
@@ -75,35 +78,16 @@ impl Cli {
 fn with_library_defaults(command: clap::Command) -> clap::Command {
     let sgm = SgmParams::default();
     let bm = BmParams::default();
-    let subpixel = |s: Subpixel| match s {
-        Subpixel::None => "none",
-        Subpixel::Parabola => "parabola",
-        Subpixel::Equiangular => "equiangular",
-    };
     let lr = |diff: Option<f32>| diff.map_or("off".to_string(), |d| d.to_string());
     let defaults = [
-        (
-            "paths",
-            (match sgm.paths {
-                PathCount::Four => "4",
-                PathCount::Eight => "8",
-            })
-            .to_string(),
-        ),
+        ("paths", sgm.paths.to_string()),
         ("p1", sgm.p1.to_string()),
         ("p2", sgm.p2.to_string()),
         ("uniqueness", format!("{} (sgm), {} (bm)", sgm.uniqueness_ratio, bm.uniqueness_ratio)),
         ("lr_max_diff", format!("{} (sgm), {} (bm)", lr(sgm.lr_max_diff), lr(bm.lr_max_diff))),
-        ("subpixel", format!("{} (sgm), {} (bm)", subpixel(sgm.subpixel), subpixel(bm.subpixel))),
+        ("subpixel", format!("{} (sgm), {} (bm)", sgm.subpixel, bm.subpixel)),
         ("block_size", bm.block_size.to_string()),
-        (
-            "bm_cost",
-            (match bm.cost {
-                BmCost::Sad => "sad",
-                BmCost::Census => "census",
-            })
-            .to_string(),
-        ),
+        ("bm_cost", bm.cost.to_string()),
     ];
     defaults.into_iter().fold(command, |command, (id, default)| {
         command.mut_arg(id, |arg| {
@@ -313,12 +297,12 @@ pub struct MatchArgs {
     pub max_disparity: Option<i32>,
 
     /// Matching algorithm: census Semi-Global Matching or window block matching.
-    #[arg(long, value_enum, default_value_t = MatcherArg::Sgm, help_heading = "Matching")]
-    pub matcher: MatcherArg,
+    #[arg(long, value_parser = named::<MatcherKind>(), default_value_t = MatcherKind::Sgm, help_heading = "Matching")]
+    pub matcher: MatcherKind,
 
     /// SGM preset; the options below override single parameters of it.
-    #[arg(long, value_enum, default_value_t = PresetArg::Balanced, help_heading = "Matching")]
-    pub preset: PresetArg,
+    #[arg(long, value_parser = named::<Preset>(), default_value_t = Preset::Balanced, help_heading = "Matching")]
+    pub preset: Preset,
 
     /// SGM: a dense map: small speckles removed, then every invalid pixel filled (occlusions from
     /// the background side, mismatches by interpolation).
@@ -355,8 +339,8 @@ pub struct MatchArgs {
     pub single_pass: bool,
 
     /// SGM: number of aggregation paths: 4 (horizontal and vertical) or 8 (also diagonals)
-    #[arg(long, value_enum, help_heading = "Matching")]
-    pub paths: Option<PathsArg>,
+    #[arg(long, value_parser = named::<PathCount>(), help_heading = "Matching")]
+    pub paths: Option<PathCount>,
 
     /// SGM: penalty for a one-pixel disparity change along a path, in census bits.
     #[arg(long, value_name = "N", help_heading = "Matching")]
@@ -387,16 +371,16 @@ pub struct MatchArgs {
     pub no_lr_check: bool,
 
     /// Subpixel refinement of the integer disparity.
-    #[arg(long, value_enum, help_heading = "Matching")]
-    pub subpixel: Option<SubpixelArg>,
+    #[arg(long, value_parser = named::<Subpixel>(), help_heading = "Matching")]
+    pub subpixel: Option<Subpixel>,
 
     /// BM: side of the square matching window, odd.
     #[arg(long, value_name = "N", help_heading = "Matching")]
     pub block_size: Option<usize>,
 
     /// BM: window cost.
-    #[arg(long, value_enum, help_heading = "Matching")]
-    pub bm_cost: Option<BmCostArg>,
+    #[arg(long, value_parser = named::<BmCost>(), help_heading = "Matching")]
+    pub bm_cost: Option<BmCost>,
 
     /// Largest image accepted, in pixels; suffixes K, M, G are 10^3, 10^6, 10^9 (e.g. 250M). An
     /// image is checked from its header, before it is decoded [default: 100M].
@@ -446,48 +430,10 @@ pub fn parse_size(text: &str) -> Result<u64, String> {
     parse_scaled(text, 1024, "bytes")
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum PresetArg {
-    /// 3 path directions in a single pass: the fastest.
-    Fast,
-    /// 8 paths (the default).
-    Balanced,
-    /// Balanced plus an edge-aware weighted median: fewer errors at depth edges, slower.
-    Accurate,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum MatcherArg {
-    /// Census Semi-Global Matching (Hirschmüller 2008).
-    Sgm,
-    /// Window block matching, winner-takes-all.
-    Bm,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum PathsArg {
-    #[value(name = "4")]
-    Four,
-    #[value(name = "8")]
-    Eight,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum SubpixelArg {
-    /// Integer disparities only.
-    None,
-    /// A parabola through the three costs around the minimum.
-    Parabola,
-    /// Two lines of equal and opposite slope (suits census/L1 costs).
-    Equiangular,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum BmCostArg {
-    /// Sum of absolute differences on an x-Sobel prefiltered image.
-    Sad,
-    /// Hamming distances of 5x5 census strings; robust to gain and bias changes.
-    Census,
+/// A clap parser for a library choice: its names, each with its help line, as possible values.
+fn named<T: Named + Clone + Send + Sync>() -> impl TypedValueParser<Value = T> {
+    PossibleValuesParser::new(T::ALL.iter().map(|v| PossibleValue::new(v.name()).help(v.help())))
+        .map(|name| parse_named::<T>(&name).expect("clap accepts only the listed names"))
 }
 
 /// `stereo-depth eval EST GT`.

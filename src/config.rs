@@ -5,15 +5,15 @@ use std::path::{Path, PathBuf};
 
 use stereo_chart::Format as ChartFormat;
 use stereo_degrade::Degradation;
-use stereo_disparity::{BmCost, BmParams, DisparityRange, PathCount, Preset, SgmParams, Subpixel};
+use stereo_pipeline::{BmParams, DisparityRange, MatcherKind, Preset, SgmParams};
 use stereo_triangulation::design::{Design, DesignError, DesignInput, Param, SensorWidth, TableSpec};
 use stereo_triangulation::Rig;
 
 use stereo_io::Calib;
 
 use crate::args::{
-    BatchArgs, BatchMergeArgs, BmCostArg, CalcArgs, DegradeArgs, DepthLimitArgs, EvalArgs, EvalFolderArgs,
-    MatchArgs, MatcherArg, PairArgs, PathsArg, PresetArg, PreviewOfArg, RigArgs, SubpixelArg,
+    BatchArgs, BatchMergeArgs, CalcArgs, DegradeArgs, DepthLimitArgs, EvalArgs, EvalFolderArgs, MatchArgs,
+    PairArgs, PreviewOfArg, RigArgs,
 };
 use crate::checks::{self, BaselineSource};
 use crate::discover::{Pattern, Shard};
@@ -565,14 +565,6 @@ fn rig_error(err: stereo_triangulation::Error) -> UsageError {
     usage!("invalid {flag} {value} {unit} (must be {expected})")
 }
 
-fn subpixel(arg: SubpixelArg) -> Subpixel {
-    match arg {
-        SubpixelArg::None => Subpixel::None,
-        SubpixelArg::Parabola => Subpixel::Parabola,
-        SubpixelArg::Equiangular => Subpixel::Equiangular,
-    }
-}
-
 fn lr_max_diff(args: &MatchArgs, default: Option<f32>) -> Result<Option<f32>, UsageError> {
     if args.no_lr_check {
         return Ok(None);
@@ -596,14 +588,10 @@ fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
         }
     };
     match args.matcher {
-        MatcherArg::Sgm => {
+        MatcherKind::Sgm => {
             reject(args.block_size.is_some(), "--block-size", "bm")?;
             reject(args.bm_cost.is_some(), "--bm-cost", "bm")?;
-            let defaults = SgmParams::preset(match args.preset {
-                PresetArg::Fast => Preset::Fast,
-                PresetArg::Balanced => Preset::Balanced,
-                PresetArg::Accurate => Preset::Accurate,
-            });
+            let defaults = SgmParams::preset(args.preset);
             let defaults = SgmParams {
                 speckle_size: args.speckle_size.unwrap_or(defaults.speckle_size),
                 single_pass: args.single_pass || defaults.single_pass,
@@ -613,26 +601,22 @@ fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
             let defaults =
                 SgmParams { confidence: args.confidence || args.min_confidence.is_some(), ..defaults };
             let params = SgmParams {
-                paths: match args.paths {
-                    Some(PathsArg::Four) => PathCount::Four,
-                    Some(PathsArg::Eight) => PathCount::Eight,
-                    None => defaults.paths,
-                },
+                paths: args.paths.unwrap_or(defaults.paths),
                 p1: args.p1.unwrap_or(defaults.p1),
                 p2: args.p2.unwrap_or(defaults.p2),
                 uniqueness_ratio: args.uniqueness.unwrap_or(defaults.uniqueness_ratio),
                 lr_max_diff: lr_max_diff(args, defaults.lr_max_diff)?,
-                subpixel: args.subpixel.map(subpixel).unwrap_or(defaults.subpixel),
+                subpixel: args.subpixel.unwrap_or(defaults.subpixel),
                 edge_snap_radius: args.edge_snap.unwrap_or(defaults.edge_snap_radius),
                 ..defaults
             };
             Ok(Matcher::Sgm(params))
         }
-        MatcherArg::Bm => {
+        MatcherKind::Bm => {
             reject(args.paths.is_some(), "--paths", "sgm")?;
             reject(args.p1.is_some(), "--p1", "sgm")?;
             reject(args.p2.is_some(), "--p2", "sgm")?;
-            reject(args.preset != PresetArg::Balanced, "--preset", "sgm")?;
+            reject(args.preset != Preset::Balanced, "--preset", "sgm")?;
             reject(args.fill, "--fill", "sgm")?;
             reject(args.speckle_size.is_some(), "--speckle-size", "sgm")?;
             reject(args.single_pass, "--single-pass", "sgm")?;
@@ -646,14 +630,10 @@ fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
             }
             let params = BmParams {
                 block_size,
-                cost: match args.bm_cost {
-                    Some(BmCostArg::Sad) => BmCost::Sad,
-                    Some(BmCostArg::Census) => BmCost::Census,
-                    None => defaults.cost,
-                },
+                cost: args.bm_cost.unwrap_or(defaults.cost),
                 uniqueness_ratio: args.uniqueness.unwrap_or(defaults.uniqueness_ratio),
                 lr_max_diff: lr_max_diff(args, defaults.lr_max_diff)?,
-                subpixel: args.subpixel.map(subpixel).unwrap_or(defaults.subpixel),
+                subpixel: args.subpixel.unwrap_or(defaults.subpixel),
                 ..defaults
             };
             Ok(Matcher::Bm(params))
@@ -782,6 +762,7 @@ mod tests {
 
     use super::*;
     use crate::args::Cli;
+    use stereo_pipeline::{PathCount, Subpixel};
 
     fn pair(args: &[&str]) -> Result<PairConfig, UsageError> {
         let mut all = vec!["stereo-depth", "in/left.png", "in/right.png"];

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use serde::Serialize;
-use stereo_disparity::{Adaptation, BmCost, PathCount, Subpixel};
+use stereo_pipeline::{Adaptation, Named, PathCount};
 use stereo_triangulation::{DepthStats, DisparityStats};
 
 use crate::checks::DepthLimitsReport;
@@ -290,14 +290,6 @@ pub fn ms(duration: Duration) -> f64 {
     duration.as_secs_f64() * 1e3
 }
 
-fn subpixel_name(subpixel: Subpixel) -> &'static str {
-    match subpixel {
-        Subpixel::None => "none",
-        Subpixel::Parabola => "parabola",
-        Subpixel::Equiangular => "equiangular",
-    }
-}
-
 impl MatcherReport {
     pub fn new(matcher: &Matcher, adaptation: Option<&Adaptation>) -> Self {
         match matcher {
@@ -317,7 +309,7 @@ impl MatcherReport {
                 p2: p.p2,
                 uniqueness: p.uniqueness_ratio,
                 lr_max_diff: p.lr_max_diff,
-                subpixel: subpixel_name(p.subpixel),
+                subpixel: p.subpixel.name(),
                 median: p.median,
                 speckle_size: p.speckle_size,
                 weighted_median_radius: p.wmf_radius,
@@ -339,13 +331,10 @@ impl MatcherReport {
                 max_disparity: p.range.max,
                 num_disparities: p.range.count(),
                 block_size: p.block_size,
-                cost: match p.cost {
-                    BmCost::Sad => "sad",
-                    BmCost::Census => "census",
-                },
+                cost: p.cost.name(),
                 uniqueness: p.uniqueness_ratio,
                 lr_max_diff: p.lr_max_diff,
-                subpixel: subpixel_name(p.subpixel),
+                subpixel: p.subpixel.name(),
             },
         }
     }

@@ -81,6 +81,10 @@ fn no_far_islands_on_a_noisy_pair() {
         let valid: Vec<f32> = disparity.as_slice().iter().copied().filter(|d| d.is_finite()).collect();
         assert!(valid.len() > disparity.as_slice().len() / 2, "{matcher}: only {} valid", valid.len());
         let far = valid.iter().filter(|&&d| d < gt_min / 2.0).count();
-        assert!(far * 5000 <= valid.len(), "{matcher}: {far} of {} valid pixels beyond 2x the scene", valid.len());
+        assert!(
+            far * 5000 <= valid.len(),
+            "{matcher}: {far} of {} valid pixels beyond 2x the scene",
+            valid.len()
+        );
     }
 }

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use crate::{check_pair, BmCost, BmParams, DisparityMap, Error, GrayImage, Subpixel};
 
 /// The largest accepted window side; keeps every window sum well inside `u32`.
-const MAX_BLOCK_SIZE: usize = 255;
+pub(crate) const MAX_BLOCK_SIZE: usize = 255;
 
 /// OpenCV's default `preFilterCap` (31 in 8-bit units), in our 16-bit units (8-bit × 257).
 const SOBEL_CAP: i32 = 31 * 257;
@@ -34,23 +34,10 @@ pub fn block_match(left: &GrayImage, right: &GrayImage, params: &BmParams) -> Re
     check_pair(left, right)?;
     let (width, height) = left.size();
     crate::check_range(&params.range, width)?;
+    params.validate()?;
     let block = params.block_size;
-    if block.is_multiple_of(2) || !(3..=MAX_BLOCK_SIZE).contains(&block) {
-        return Err(Error::InvalidParameter {
-            name: "block size",
-            message: format!("{block} must be odd and between 3 and {MAX_BLOCK_SIZE}"),
-        });
-    }
     if width < block || height < block {
         return Err(Error::ImageTooSmall { width, height, window_width: block, window_height: block });
-    }
-    if let Some(t) = params.lr_max_diff {
-        if t.is_nan() || t < 0.0 {
-            return Err(Error::InvalidParameter {
-                name: "lr max diff",
-                message: format!("{t} must be a non-negative number of pixels"),
-            });
-        }
     }
 
     let features = match params.cost {

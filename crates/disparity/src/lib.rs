@@ -30,6 +30,7 @@ mod far_islands;
 mod fill;
 mod filter;
 mod memory;
+mod names;
 mod path_u8;
 mod post;
 mod radiometric;
@@ -48,6 +49,7 @@ mod wta;
 pub use bm::block_match;
 pub use fill::{fill_invalid, filled_mask};
 pub use filter::weighted_median;
+pub use names::{parse_named, Named};
 pub use post::{Adaptation, SgmOutput};
 pub use sgm::{planned_memory_bytes, sgm, sgm_detailed};
 pub use speckle::remove_speckles;
@@ -115,6 +117,7 @@ pub enum Subpixel {
 
 /// The census transform window (odd width and height; at most 64 comparisons).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CensusWindow {
     pub width: usize,
     pub height: usize,
@@ -141,6 +144,7 @@ impl CensusWindow {
 
 /// The per-pixel matching cost SGM aggregates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum MatchingCost {
     /// Hamming distance between the census bit strings (0 ..= window pixels − 1).
     Census,
@@ -159,6 +163,7 @@ pub const MAX_AD_CAP: u8 = 127;
 /// (plus, for [`MatchingCost::AdCensus`], the capped intensity term), so `p1`/`p2` are in
 /// "differing bits".
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct SgmParams {
     pub range: DisparityRange,
     pub census: CensusWindow,
@@ -277,6 +282,52 @@ pub enum Preset {
 }
 
 impl SgmParams {
+    /// Checks every parameter on its own (those that depend on the image size are checked by
+    /// the matcher): the same errors [`sgm`] returns, before any work.
+    pub fn validate(&self) -> Result<(), Error> {
+        if self.range.max <= self.range.min {
+            return Err(Error::EmptyRange { min: self.range.min, max: self.range.max });
+        }
+        crate::post::check(self)?;
+        self.census.check()?;
+        if self.p1 == 0 || self.p1 >= self.p2 || self.p2 > aggregate::MAX_P2 {
+            return Err(Error::InvalidParameter {
+                name: "p1/p2",
+                message: format!(
+                    "need 0 < P1 < P2 <= {}, got P1 = {} and P2 = {}",
+                    aggregate::MAX_P2,
+                    self.p1,
+                    self.p2
+                ),
+            });
+        }
+        if let Some(d) = self.lr_max_diff {
+            if d.is_nan() || d < 0.0 {
+                return Err(Error::InvalidParameter {
+                    name: "left-right max difference",
+                    message: format!("{d} must be a number >= 0"),
+                });
+            }
+        }
+
+        if let MatchingCost::AdCensus { cap, .. } = self.matching_cost {
+            if cap > MAX_AD_CAP {
+                return Err(Error::InvalidParameter {
+                    name: "AD-census cap",
+                    message: format!("{cap} must be at most {MAX_AD_CAP}"),
+                });
+            }
+        }
+        let nd = self.range.count();
+        if nd >= usize::from(u16::MAX) {
+            return Err(Error::InvalidParameter {
+                name: "disparity range",
+                message: format!("{nd} disparities; at most {} are supported", u16::MAX - 1),
+            });
+        }
+        Ok(())
+    }
+
     /// The parameters of `preset` (range: the default; set it for the pair). Every field can be
     /// changed afterwards.
     pub fn preset(preset: Preset) -> Self {
@@ -333,6 +384,7 @@ pub enum BmCost {
 
 /// Block matching parameters.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct BmParams {
     pub range: DisparityRange,
     /// Side of the square matching window (odd, at least 3).
@@ -343,6 +395,32 @@ pub struct BmParams {
     /// As in [`SgmParams::lr_max_diff`].
     pub lr_max_diff: Option<f32>,
     pub subpixel: Subpixel,
+}
+
+impl BmParams {
+    /// Checks every parameter on its own (those that depend on the image size are checked by
+    /// the matcher): the same errors [`block_match`] returns, before any work.
+    pub fn validate(&self) -> Result<(), Error> {
+        if self.range.max <= self.range.min {
+            return Err(Error::EmptyRange { min: self.range.min, max: self.range.max });
+        }
+        let block = self.block_size;
+        if block.is_multiple_of(2) || !(3..=bm::MAX_BLOCK_SIZE).contains(&block) {
+            return Err(Error::InvalidParameter {
+                name: "block size",
+                message: format!("{block} must be odd and between 3 and {}", bm::MAX_BLOCK_SIZE),
+            });
+        }
+        if let Some(t) = self.lr_max_diff {
+            if t.is_nan() || t < 0.0 {
+                return Err(Error::InvalidParameter {
+                    name: "lr max diff",
+                    message: format!("{t} must be a non-negative number of pixels"),
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for BmParams {

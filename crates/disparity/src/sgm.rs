@@ -9,7 +9,7 @@ use crate::memory;
 use crate::post::{Adaptation, SgmOutput};
 use crate::radiometric::{blockiness, CoarseMatch};
 use crate::wta::Selection;
-use crate::{check_pair, DisparityMap, Error, GrayImage, Image, MatchingCost, SgmParams, MAX_AD_CAP};
+use crate::{check_pair, DisparityMap, Error, GrayImage, Image, MatchingCost, SgmParams};
 
 /// Semi-Global Matching of a rectified pair (Hirschmüller 2008) with census or AD-census costs
 /// ([`SgmParams::matching_cost`]).
@@ -24,8 +24,7 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
 /// and, with [`SgmParams::fill`], which pixels were filled ([`SgmOutput::filled_mask`]).
 pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<SgmOutput, Error> {
     check_pair(left, right)?;
-    crate::post::check(params)?;
-    params.census.check()?;
+    params.validate()?;
     let (width, height) = left.size();
     if width < params.census.width || height < params.census.height {
         return Err(Error::ImageTooSmall {
@@ -36,36 +35,6 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         });
     }
     crate::check_range(&params.range, width)?;
-    if params.p1 == 0 || params.p1 >= params.p2 || params.p2 > MAX_P2 {
-        return Err(Error::InvalidParameter {
-            name: "p1/p2",
-            message: format!("need 0 < P1 < P2 <= {MAX_P2}, got P1 = {} and P2 = {}", params.p1, params.p2),
-        });
-    }
-    if let Some(d) = params.lr_max_diff {
-        if d.is_nan() || d < 0.0 {
-            return Err(Error::InvalidParameter {
-                name: "left-right max difference",
-                message: format!("{d} must be a number >= 0"),
-            });
-        }
-    }
-
-    if let MatchingCost::AdCensus { cap, .. } = params.matching_cost {
-        if cap > MAX_AD_CAP {
-            return Err(Error::InvalidParameter {
-                name: "AD-census cap",
-                message: format!("{cap} must be at most {MAX_AD_CAP}"),
-            });
-        }
-    }
-    let nd = params.range.count();
-    if nd >= usize::from(u16::MAX) {
-        return Err(Error::InvalidParameter {
-            name: "disparity range",
-            message: format!("{nd} disparities; at most {} are supported", u16::MAX - 1),
-        });
-    }
     let (adapted, census_left, census_right, adaptation) =
         adapt_to_pair(left, right, params, census_transform);
     let params = &adapted;
@@ -341,7 +310,7 @@ mod tests {
                 median,
                 matching_cost: match ad {
                     None => crate::MatchingCost::Census,
-                    Some((weight, cap)) => crate::MatchingCost::AdCensus { weight: weight % 9, cap: cap % (MAX_AD_CAP + 1) },
+                    Some((weight, cap)) => crate::MatchingCost::AdCensus { weight: weight % 9, cap: cap % (crate::MAX_AD_CAP + 1) },
                 },
                 ..SgmParams::default()
             };

@@ -4,6 +4,7 @@ use crate::Error;
 
 /// The disparities searched: `min <= d < max` (so `max - min` is OpenCV's `numDisparities`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DisparityRange {
     pub min: i32,
     pub max: i32,

@@ -39,11 +39,13 @@ mod plan;
 mod run;
 
 pub use depth_limits::DepthLimits;
-pub use matcher::Matcher;
+pub use matcher::{Matcher, MatcherKind};
 pub use plan::{MemoryLimit, PipelineParams, Plan};
 pub use run::{DepthResult, Rectification, StageTimings};
 
-pub use stereo_disparity::{Adaptation, BmParams, DisparityRange, SgmParams};
+pub use stereo_disparity::{
+    parse_named, Adaptation, BmCost, BmParams, DisparityRange, Named, PathCount, Preset, SgmParams, Subpixel,
+};
 pub use stereo_image::{DisparityMap, GrayImage, Image, ImageRef};
 pub use stereo_rectify::{Alignment, AlignmentVerdict};
 pub use stereo_triangulation::Rig;

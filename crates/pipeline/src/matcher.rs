@@ -1,6 +1,9 @@
 //! Which matcher runs, and the working memory it plans for a pair.
 
-use stereo_disparity::{BmParams, DisparityRange, SgmParams};
+use std::fmt;
+use std::str::FromStr;
+
+use stereo_disparity::{parse_named, BmParams, DisparityRange, Named, SgmParams};
 
 /// The matcher and its parameters (the searched range is inside them).
 #[derive(Clone, Debug, PartialEq)]
@@ -20,10 +23,7 @@ impl Default for Matcher {
 impl Matcher {
     /// `"sgm"` or `"bm"`, as on the command line and in the statistics.
     pub fn name(&self) -> &'static str {
-        match self {
-            Matcher::Sgm(_) => "sgm",
-            Matcher::Bm(_) => "bm",
-        }
+        self.kind().name()
     }
 
     /// The disparities searched.
@@ -92,4 +92,52 @@ fn sgm_bytes(width: usize, height: usize, params: &SgmParams) -> u64 {
         return u64::try_from(rough).unwrap_or(u64::MAX);
     }
     stereo_disparity::planned_memory_bytes(width, height, params) as u64
+}
+
+/// Which matcher, by name: `"sgm"` or `"bm"` (the [`Matcher`] without its parameters).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MatcherKind {
+    #[default]
+    Sgm,
+    Bm,
+}
+
+impl Named for MatcherKind {
+    const WHAT: &'static str = "matcher";
+    const ALL: &'static [Self] = &[MatcherKind::Sgm, MatcherKind::Bm];
+    fn name(self) -> &'static str {
+        match self {
+            MatcherKind::Sgm => "sgm",
+            MatcherKind::Bm => "bm",
+        }
+    }
+    fn help(self) -> &'static str {
+        match self {
+            MatcherKind::Sgm => "census Semi-Global Matching (Hirschmüller 2008)",
+            MatcherKind::Bm => "window block matching, winner-takes-all",
+        }
+    }
+}
+
+impl fmt::Display for MatcherKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for MatcherKind {
+    type Err = stereo_disparity::Error;
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        parse_named(text)
+    }
+}
+
+impl Matcher {
+    /// Its kind, by name.
+    pub fn kind(&self) -> MatcherKind {
+        match self {
+            Matcher::Sgm(_) => MatcherKind::Sgm,
+            Matcher::Bm(_) => MatcherKind::Bm,
+        }
+    }
 }

@@ -43,8 +43,10 @@ impl PipelineParams {
 
     /// Checks the parameters that do not depend on the image size.
     pub fn validate(&self) -> Result<(), Error> {
-        let range = self.matcher.range();
-        DisparityRange::new(range.min, range.max).map_err(stereo_disparity::Error::from)?;
+        match &self.matcher {
+            Matcher::Sgm(params) => params.validate()?,
+            Matcher::Bm(params) => params.validate()?,
+        }
         if let Some(t) = self.min_confidence {
             if !(0.0..=1.0).contains(&t) {
                 return Err(Error::InvalidParameter {
