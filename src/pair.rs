@@ -39,11 +39,18 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     let plan = plan(config)?;
     // Both views decode at once: PNG decoding is single-threaded, and it is most of the load.
     let max_pixels = config.limits.max_pixels;
+    // A coloured point cloud takes its colours from the same decode of the left view.
+    let wants_colour = config.points.is_some() && config.rig.is_some();
     let (left, right) = rayon::join(
-        || stereo_io::load_gray_limited(&config.left, max_pixels),
+        || match wants_colour {
+            true => {
+                stereo_io::load_gray_and_rgb8_limited(&config.left, max_pixels).map(|(g, c)| (g, Some(c)))
+            }
+            false => stereo_io::load_gray_limited(&config.left, max_pixels).map(|g| (g, None)),
+        },
         || stereo_io::load_gray_limited(&config.right, max_pixels),
     );
-    let left = left.context("cannot read the left image")?;
+    let (left, colour) = left.context("cannot read the left image")?;
     let right = right.context("cannot read the right image")?;
     let load = t.elapsed();
     // The headers were read a moment ago; a file replaced since is caught here.
@@ -59,7 +66,7 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
 
     let t = Instant::now();
     let mut written = Written::default();
-    let counts = writers::write_outputs(config, &result, &mut written)?;
+    let counts = writers::write_outputs(config, &result, colour.as_ref(), &mut written)?;
     let write = t.elapsed();
     let stats =
         Stats::new(config, &plan, &result, counts, StageTimes { load, write, total: start.elapsed() });

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use stereo_pipeline::DepthResult;
+use stereo_pipeline::{DepthResult, Image};
 
 use crate::config::{PairConfig, PreviewOf};
 
@@ -15,10 +15,12 @@ pub struct WriteCounts {
     pub depth_png_too_deep: Option<usize>,
 }
 
-/// Writes every output of `config` but the statistics, in a fixed order, into `written`.
+/// Writes every output of `config` but the statistics, in a fixed order, into `written`;
+/// `colour` (the left view's) colours the point cloud.
 pub fn write_outputs<'a>(
     config: &'a PairConfig,
     result: &DepthResult,
+    colour: Option<&Image<[u8; 3]>>,
     written: &mut Written<'a>,
 ) -> Result<WriteCounts> {
     let disparity = &result.disparity;
@@ -57,11 +59,9 @@ pub fn write_outputs<'a>(
         counts.depth_png_too_deep = Some(too_deep);
     }
     if let (Some(path), Some(setup)) = (&config.points, &config.rig) {
-        let colour = stereo_io::load_rgb8_limited(&config.left, config.limits.max_pixels)
-            .context("cannot read the left image's colours")?;
-        if colour.size() != disparity.size() {
-            bail!("{} changed while it was being processed", config.left.display());
-        }
+        let Some(colour) = colour.filter(|c| c.size() == disparity.size()) else {
+            bail!("{}: no colours of the left view's size for the point cloud", config.left.display());
+        };
         let vertices: Vec<stereo_io::PlyVertex> =
             stereo_triangulation::points(disparity, &setup.rig, config.points_step)
                 .into_iter()

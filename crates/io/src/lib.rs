@@ -49,8 +49,8 @@ pub use png16::{
 };
 pub use preview::{label as preview_label, render_preview, turbo, write_png_rgb8, ColourScale, Preview};
 pub use raster::{
-    decode_gray, load_gray, load_gray_limited, load_rgb8, load_rgb8_limited, probe_image, ImageHeader,
-    DEFAULT_MAX_PIXELS,
+    decode_gray, load_gray, load_gray_and_rgb8_limited, load_gray_limited, load_rgb8, load_rgb8_limited,
+    probe_image, ImageHeader, DEFAULT_MAX_PIXELS,
 };
 
 /// I/O errors, each naming the file.

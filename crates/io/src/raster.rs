@@ -308,7 +308,22 @@ pub fn load_rgb8(path: &Path) -> Result<Image<[u8; 3]>, Error> {
 
 /// [`load_rgb8`] of an image of at most `max_pixels` pixels (checked before decoding).
 pub fn load_rgb8_limited(path: &Path, max_pixels: u64) -> Result<Image<[u8; 3]>, Error> {
+    to_rgb8(path, &decode(path, max_pixels)?)
+}
+
+/// The working grey image and the 8-bit RGB colours of one image, decoded once (the left view
+/// of a pair whose point cloud is coloured): the same values as [`load_gray_limited`] and
+/// [`load_rgb8_limited`].
+pub fn load_gray_and_rgb8_limited(
+    path: &Path,
+    max_pixels: u64,
+) -> Result<(GrayImage, Image<[u8; 3]>), Error> {
     let img = decode(path, max_pixels)?;
+    let colour = to_rgb8(path, &img)?;
+    Ok((to_gray(path, img)?, colour))
+}
+
+fn to_rgb8(path: &Path, img: &DynamicImage) -> Result<Image<[u8; 3]>, Error> {
     let (w, h) = (img.width(), img.height());
     let top = |v: u16| (v >> 8) as u8;
     match img {
