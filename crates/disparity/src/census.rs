@@ -10,7 +10,7 @@ use crate::{CensusWindow, GrayImage, Image};
 /// Bit order: window positions row by row, skipping the centre; a bit is 1 when that
 /// neighbour is darker than the centre. Outside the image the nearest border pixel is used.
 pub(crate) fn census_transform(image: &GrayImage, window: CensusWindow, out: &mut Image<u64>) {
-    census_transform_with(image, window, out, Kernel::for_level(crate::simd::features().level))
+    census_transform_with(image, window, out, Kernel::for_level(crate::kernels::features().level))
 }
 
 /// The row kernels; chosen once per transform (tests run each one the machine supports).
@@ -31,12 +31,12 @@ enum Kernel {
 impl Kernel {
     /// The fastest kernel for `level`: the bit-matrix transpose needs AVX-512VBMI and GFNI on
     /// top of the AVX-512 level (Intel Ice Lake, AMD Zen 4 and later), older AVX-512 CPUs keep the plain kernel.
-    fn for_level(level: crate::simd::Level) -> Kernel {
+    fn for_level(level: crate::kernels::Level) -> Kernel {
         #[cfg(target_arch = "x86_64")]
         {
-            use crate::simd::Level;
+            use crate::kernels::Level;
             match level {
-                Level::Avx512 if gfni_transpose_available() => return Kernel::Gfni,
+                Level::Avx512 if crate::kernels::Features::capped(level).gfni => return Kernel::Gfni,
                 Level::Avx512 => return Kernel::Avx512,
                 Level::Avx2 => return Kernel::Avx2,
                 Level::Scalar => {}
@@ -45,13 +45,6 @@ impl Kernel {
         let _ = level;
         Kernel::Generic
     }
-}
-
-/// Whether the CPU has what [`census_row_gfni`] needs beyond the AVX-512 level (the standard
-/// library caches the check).
-#[cfg(target_arch = "x86_64")]
-fn gfni_transpose_available() -> bool {
-    is_x86_feature_detected!("avx512vbmi") && is_x86_feature_detected!("gfni")
 }
 
 fn census_transform_with(image: &GrayImage, window: CensusWindow, out: &mut Image<u64>, kernel: Kernel) {
@@ -438,7 +431,7 @@ mod tests {
         // Only x86 adds a kernel below.
         #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut kernels: Vec<Kernel> =
-            crate::simd::supported_levels().into_iter().map(Kernel::for_level).collect();
+            crate::kernels::supported_levels().into_iter().map(Kernel::for_level).collect();
         #[cfg(target_arch = "x86_64")]
         if kernels.contains(&Kernel::Gfni) {
             kernels.push(Kernel::Avx512);
@@ -449,7 +442,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn the_bit_matrix_transpose_transposes() {
-        if !(crate::simd::features().level == crate::simd::Level::Avx512 && gfni_transpose_available()) {
+        if !crate::kernels::Features::capped(crate::kernels::Level::Avx512).gfni {
             return;
         }
         let mut s = 0x9e37_79b9_7f4a_7c15u64;

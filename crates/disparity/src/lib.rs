@@ -29,14 +29,13 @@ mod cost;
 mod fill;
 mod filter;
 mod image;
+mod kernels;
 mod memory;
-mod path_u8;
 mod post;
 mod radiometric;
 #[cfg(test)]
 mod reference;
 mod sgm;
-mod simd;
 mod snap;
 mod speckle;
 #[doc(hidden)]
@@ -188,7 +187,7 @@ pub enum MatchingCost {
 
 /// The largest [`MatchingCost::AdCensus`] cap: costs stay below 192, so path costs (at most
 /// cost + P2) summed over eight paths fit `u16` for every accepted P2.
-pub const MAX_AD_CAP: u8 = 127;
+pub const MAX_AD_CAP: u8 = kernels::layout::MAX_AD_CAP;
 
 /// Semi-Global Matching parameters. Costs are Hamming distances between census bit strings
 /// (plus, for [`MatchingCost::AdCensus`], the capped intensity term), so `p1`/`p2` are in

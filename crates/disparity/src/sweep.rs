@@ -1,7 +1,7 @@
 //! The path steps of a whole row on 8-bit path costs, with the horizontal path kept in
 //! registers.
 //!
-//! The per-pixel kernel ([`crate::path_u8::path_step_u8`]) reads the previous pixel's path costs
+//! The per-pixel kernel ([`crate::kernels::path_step_u8`]) reads the previous pixel's path costs
 //! from memory at offsets −1, 0 and +1 lanes right after the previous step stored them. Along a
 //! row the horizontal path is one long dependency chain, and loads straddling two recent vector
 //! stores cannot be forwarded from the store buffer, so every pixel waited for its predecessor's
@@ -9,10 +9,10 @@
 //! `d ± 1` neighbours come from in-register byte shifts and its minimum is reduced to a broadcast
 //! without a trip through a general register. The paths continuing from the previous row (read
 //! long after they were stored) stay in memory. The results are those of
-//! [`crate::path_u8::path_step_u8_scalar`] pixel by pixel.
+//! [`crate::kernels::scalar::path_step_u8_scalar`] pixel by pixel.
 
-use crate::path_u8::LANES_U8;
-use crate::simd::Level;
+use crate::kernels::layout::LANES_U8;
+use crate::kernels::Level;
 
 /// The most lanes the register kernel keeps (four 64-lane registers); longer vectors take the
 /// per-pixel kernel.
@@ -47,7 +47,7 @@ pub(crate) struct Trailing<'a, T = u8> {
 
 /// Whether [`row_u8`] has a kernel for this level and lane count.
 pub(crate) fn row_u8_available(level: Level, lanes: usize) -> bool {
-    cfg!(target_arch = "x86_64") && level == Level::Avx512 && lanes <= MAX_REGISTER_LANES
+    level.avx512() && lanes <= MAX_REGISTER_LANES
 }
 
 /// Runs one row of a pass: the horizontal path (right to left when `reverse`, else left to
@@ -55,7 +55,7 @@ pub(crate) fn row_u8_available(level: Level, lanes: usize) -> bool {
 /// read) and the `K` paths from the previous row, storing (or, with `accumulate`, adding) the sum
 /// of their path costs into `sum` (`nd` per pixel).
 ///
-/// `cost` holds `lanes` 8-bit matching costs per pixel ([`crate::path_u8::padded_lanes_u8`]
+/// `cost` holds `lanes` 8-bit matching costs per pixel ([`crate::kernels::layout::padded_lanes_u8`]
 /// lanes, 255 past the last disparity). With `trailing`, that row's ← path runs in the same loop.
 /// Returns `false`, touching nothing, when this CPU or this lane count has no register kernel;
 /// the caller then steps pixel by pixel.
@@ -135,7 +135,7 @@ mod x86 {
     use std::arch::x86_64::*;
 
     use super::{FromRow, Trailing};
-    use crate::path_u8::interleave;
+    use crate::kernels::layout::interleave;
 
     /// The minimum of the 64 unsigned bytes of `m`, in every byte.
     #[inline]
@@ -454,8 +454,9 @@ mod x86 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::path_u8::{padded_lanes_u8, path_step_u8_scalar, PAD_U8};
-    use crate::simd::{supported_levels, PathIn};
+    use crate::kernels::layout::{padded_lanes_u8, PathIn, PAD_U8};
+    use crate::kernels::scalar::path_step_u8_scalar;
+    use crate::kernels::supported_levels;
     use proptest::prelude::*;
     use std::cell::Cell;
 

@@ -1,7 +1,7 @@
 //! Winner-takes-all disparity selection over an aggregated cost volume (`[y][x][d]`), with
 //! subpixel refinement, the uniqueness test and the left-right consistency check.
 
-use crate::simd::{self, Level};
+use crate::kernels::{self, Level};
 use crate::status::{tagged_nan, PixelStatus};
 use crate::{DisparityRange, Subpixel};
 
@@ -135,54 +135,23 @@ pub(crate) fn select_row(
     out: &mut [f32],
 ) {
     #[cfg(target_arch = "x86_64")]
-    {
-        match simd::features().level {
-            // SAFETY: the level was detected on this CPU.
-            Level::Avx512 if nd <= fused::MAX_DISPARITIES => {
-                return unsafe { fused::select_row_avx512(costs, width, nd, sel, scratch, out) }
-            }
-            // SAFETY: as above.
-            Level::Avx512 => return unsafe { select_row_avx512(costs, width, nd, sel, scratch, out) },
-            // SAFETY: as above.
-            Level::Avx2 => return unsafe { select_row_avx2(costs, width, nd, sel, scratch, out) },
-            Level::Scalar => {}
-        }
+    if kernels::features().level.avx512() && nd <= fused::MAX_DISPARITIES {
+        // SAFETY: the AVX-512 level was detected on this CPU.
+        return unsafe { fused::select_row_avx512(costs, width, nd, sel, scratch, out) };
     }
-    select_row_generic(costs, width, nd, sel, scratch, out, Level::Scalar)
+    select_row_levels(costs, width, nd, sel, scratch, out)
 }
 
-/// [`select_row_generic`] compiled for AVX-512BW, with the SIMD kernels inlined.
-///
-/// # Safety
-/// The CPU must have AVX-512F/BW/VL.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,popcnt")]
-unsafe fn select_row_avx512(
-    costs: &[u16],
-    width: usize,
-    nd: usize,
-    sel: Selection,
-    scratch: &mut WtaScratch,
-    out: &mut [f32],
-) {
-    select_row_generic(costs, width, nd, sel, scratch, out, Level::Avx512)
-}
-
-/// [`select_row_generic`] compiled for AVX2.
-///
-/// # Safety
-/// The CPU must have AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,popcnt")]
-unsafe fn select_row_avx2(
-    costs: &[u16],
-    width: usize,
-    nd: usize,
-    sel: Selection,
-    scratch: &mut WtaScratch,
-    out: &mut [f32],
-) {
-    select_row_generic(costs, width, nd, sel, scratch, out, Level::Avx2)
+kernels::multiversion! {
+    /// [`select_row_generic`] compiled for the detected level, with the SIMD kernels inlined.
+    fn select_row_levels(
+        costs: &[u16],
+        width: usize,
+        nd: usize,
+        sel: Selection,
+        scratch: &mut WtaScratch,
+        out: &mut [f32],
+    ) => select_row_generic;
 }
 
 #[inline(always)]
@@ -213,7 +182,7 @@ fn select_row_generic(
             let c = &costs[x * nd..(x + 1) * nd][ks.clone()];
             let q0 = (width as i64 - 1 - x as i64 + sel.range.min as i64 + ks.start as i64) as usize;
             let (rc, ri) = (&mut rc[q0..q0 + c.len()], &mut ri[q0..q0 + c.len()]);
-            simd::keep_smaller(level, c, ks.start as u16, rc, ri);
+            kernels::keep_smaller(level, c, ks.start as u16, rc, ri);
         }
     }
 
@@ -224,7 +193,7 @@ fn select_row_generic(
             continue;
         }
         let c = &costs[x * nd..(x + 1) * nd];
-        let best = ks.start + simd::argmin(level, &c[ks.clone()]).1;
+        let best = ks.start + kernels::argmin(level, &c[ks.clone()]).1;
         if ambiguous(c, ks.clone(), best, sel.uniqueness_ratio) {
             *o = tagged_nan(PixelStatus::Ambiguous);
             continue;
@@ -591,7 +560,7 @@ mod tests {
             select_row(&costs, width, nd, sel, &mut scratch, &mut dispatched);
             runs.push(("select_row", dispatched));
             #[cfg(target_arch = "x86_64")]
-            if simd::supported_levels().contains(&Level::Avx512) && nd <= fused::MAX_DISPARITIES {
+            if kernels::supported_levels().contains(&Level::Avx512) && nd <= fused::MAX_DISPARITIES {
                 let mut f = vec![0f32; width];
                 // SAFETY: AVX-512 is supported (checked above); the lengths fit.
                 unsafe { fused::select_row_avx512(&costs, width, nd, sel, &mut scratch, &mut f) };
