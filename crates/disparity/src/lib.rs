@@ -42,6 +42,7 @@ mod speckle;
 pub mod stages;
 mod status;
 mod sweep;
+mod winner;
 mod wta;
 
 pub use bm::block_match;

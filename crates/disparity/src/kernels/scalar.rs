@@ -130,7 +130,7 @@ pub(crate) fn cost_row_u8_scalar(
 }
 
 /// The readable reference of [`super::argmin`].
-pub(crate) fn argmin_scalar(values: &[u16]) -> (u16, usize) {
+pub(crate) fn argmin_scalar<T: Copy + Ord>(values: &[T]) -> (T, usize) {
     let mut best = 0;
     for (k, &v) in values.iter().enumerate() {
         if v < values[best] {
