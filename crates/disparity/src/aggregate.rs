@@ -27,9 +27,10 @@
 use std::sync::Mutex;
 
 use crate::cost::{AdRows, AlignedRow, BtRow};
-use crate::kernels::layout::{fits, padded_lanes, padded_lanes_u8, PathIn, MAX_PATH_COST, PAD, PAD_U8};
+use crate::kernels::layout::{
+    fits, padded_lanes, padded_lanes_u8, FromRow, PathIn, Trailing, MAX_PATH_COST, PAD, PAD_U8,
+};
 use crate::kernels::{self, features, Level};
-use crate::sweep::{FromRow, Trailing};
 use crate::wta::{select_row, Selection, WtaScratch};
 use crate::{DisparityRange, GrayImage, Image, PathCount};
 
@@ -105,7 +106,7 @@ trait PathCost: Copy + Default + Send + Sync + 'static {
     ) -> [Self; N];
     /// Whether [`PathCost::row`] has a kernel for this level and lane count.
     fn has_row(level: Level, lanes: usize) -> bool;
-    /// [`crate::sweep::row_u8`] in this type: a row of a pass with the horizontal path in
+    /// [`crate::kernels::row_u8`] in this type: a row of a pass with the horizontal path in
     /// registers; `false` (nothing done) where there is no such kernel.
     #[allow(clippy::too_many_arguments)]
     fn row<const K: usize>(
@@ -204,7 +205,7 @@ impl PathCost for u8 {
         kernels::path_step_u8(level, cost, p1, ins, outs, sum, accumulate)
     }
     fn has_row(level: Level, lanes: usize) -> bool {
-        crate::sweep::row_u8_available(level, lanes)
+        crate::kernels::row_u8_available(level, lanes)
     }
     #[inline(always)]
     fn row<const K: usize>(
@@ -220,7 +221,7 @@ impl PathCost for u8 {
         accumulate: bool,
         trailing: Option<Trailing<'_, u8>>,
     ) -> bool {
-        crate::sweep::row_u8(level, cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing)
+        crate::kernels::row_u8(level, cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing)
     }
 }
 

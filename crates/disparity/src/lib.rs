@@ -41,7 +41,6 @@ mod speckle;
 #[doc(hidden)]
 pub mod stages;
 mod status;
-mod sweep;
 mod winner;
 mod wta;
 

@@ -114,3 +114,30 @@ pub(crate) fn interleave(base: usize) -> [i16; 32] {
         (if d.is_multiple_of(2) { d / 2 } else { 32 + d / 2 }) as i16
     })
 }
+
+/// A path continuing from the previous row of the pass: from pixel `x + dx` of that row into
+/// pixel `x`.
+pub(crate) struct FromRow<'a, T = u8> {
+    /// The previous row's path costs (`lanes + 2` per pixel, the disparities at `1..=lanes`) and
+    /// minima; both empty when the path enters the image on this row.
+    pub prev: &'a [T],
+    pub prev_mins: &'a [T],
+    /// Column of the source pixel relative to `x` (−1, 0 or 1); outside the row the path enters
+    /// the image at `x`.
+    pub dx: isize,
+    /// P2 for entering each pixel along this path.
+    pub p2: &'a [T],
+    /// This row's path costs and minima, laid out as `prev`.
+    pub out: &'a mut [T],
+    pub out_mins: &'a mut [T],
+}
+
+/// A second, independent row run in the same loop as a [`super::row_u8`] row: the horizontal path
+/// alone, right to left, added into `sum`. Its dependency chain overlaps the first row's, so
+/// each fills the other's latency (the single-pass aggregation runs the ← path of one row beside
+/// the →, ↓ paths of the next).
+pub(crate) struct Trailing<'a, T = u8> {
+    pub cost: &'a [T],
+    pub p2: &'a [T],
+    pub sum: &'a mut [u16],
+}

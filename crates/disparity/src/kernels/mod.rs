@@ -14,7 +14,10 @@
 
 use std::sync::OnceLock;
 
-use layout::{padded_lanes, padded_lanes_u8, AdRows, PathIn, PathInU8, BT_PAD, LANES, LANES_U8, MAX_AD_CAP};
+use layout::{
+    padded_lanes, padded_lanes_u8, AdRows, FromRow, PathIn, PathInU8, Trailing, BT_PAD, LANES, LANES_U8,
+    MAX_AD_CAP,
+};
 
 /// One register of the SGM recurrence (Hirschmüller 2008, eq. 13) for one path, written once for
 /// every register width and lane type: loads the previous pixel's path costs at `prev` (lanes
@@ -25,6 +28,8 @@ use layout::{padded_lanes, padded_lanes_u8, AdRows, PathIn, PathInU8, BT_PAD, LA
 /// `u16` lanes add the cost first (`(c + best) - prev_min`, saturating then wrapping: the padding
 /// lanes hold large values), `u8` lanes subtract first (`c + (best - prev_min)`, exact because
 /// the bracket lies in `0..=P2`); both are what the scalar references compute.
+/// `U8_512_REGISTERS` is the step alone on registers (`c, prev[d], prev[d - 1], prev[d + 1], P1,
+/// jump, prev_min`), for the row kernels that keep a path in registers.
 #[cfg(target_arch = "x86_64")]
 macro_rules! path_vector {
     (U16_512, $($rest:tt)*) => {
@@ -39,17 +44,24 @@ macro_rules! path_vector {
     (U8_256, $($rest:tt)*) => {
         path_vector!(@ [_mm256_loadu_si256, _mm256_storeu_si256, _mm256_min_epu8, _mm256_adds_epu8, _mm256_sub_epi8], bracket_first, $($rest)*)
     };
+    (U8_512_REGISTERS, $($rest:tt)*) => {
+        path_vector!(@step [_mm512_min_epu8, _mm512_adds_epu8, _mm512_sub_epi8], bracket_first, $($rest)*)
+    };
     (@ [$load:ident, $store:ident, $min:ident, $adds:ident, $sub:ident], $order:ident,
      $c:expr, $prev:expr, $out:expr, $p1:expr, $jump:expr, $pmin:expr) => {{
         let prev = $prev;
         let l = $load(prev.cast());
         let m = $load(prev.add(1).cast());
         let r = $load(prev.add(2).cast());
-        let near = $adds($min(l, r), $p1);
-        let best = $min($min(m, near), $jump);
-        let v = path_vector!(@combine $order, $adds, $sub, $c, best, $pmin);
+        let v = path_vector!(@step [$min, $adds, $sub], $order, $c, m, l, r, $p1, $jump, $pmin);
         $store($out.cast(), v);
         v
+    }};
+    (@step [$min:ident, $adds:ident, $sub:ident], $order:ident,
+     $c:expr, $m:expr, $l:expr, $r:expr, $p1:expr, $jump:expr, $pmin:expr) => {{
+        let near = $adds($min($l, $r), $p1);
+        let best = $min($min($m, near), $jump);
+        path_vector!(@combine $order, $adds, $sub, $c, best, $pmin)
     }};
     (@combine cost_first, $adds:ident, $sub:ident, $c:expr, $best:expr, $pmin:expr) => {
         $sub($adds($c, $best), $pmin)
@@ -434,4 +446,93 @@ pub(crate) fn bt_fill(level: Level, row: &[u16], value: &mut [u8], lo: &mut [u8]
         Level::Avx512 | Level::Avx2 => unsafe { avx2::bt_fill_avx2(row, value, lo, hi) },
         Level::Scalar => scalar::bt_fill_in_order(row, value, lo, hi),
     }
+}
+
+/// The most lanes the register kernel keeps (four 64-lane registers); longer vectors take the
+/// per-pixel kernel.
+const MAX_REGISTER_LANES: usize = 256;
+
+/// Whether [`row_u8`] has a kernel for this level and lane count.
+pub(crate) fn row_u8_available(level: Level, lanes: usize) -> bool {
+    level.avx512() && lanes <= MAX_REGISTER_LANES
+}
+
+/// Runs one row of a pass: the horizontal path (right to left when `reverse`, else left to
+/// right; entering pixel `x` from its predecessor costs `p2[x]`, the first pixel's entry is not
+/// read) and the `K` paths from the previous row, storing (or, with `accumulate`, adding) the sum
+/// of their path costs into `sum` (`nd` per pixel).
+///
+/// `cost` holds `lanes` 8-bit matching costs per pixel ([`crate::kernels::layout::padded_lanes_u8`]
+/// lanes, 255 past the last disparity). With `trailing`, that row's ← path runs in the same loop.
+/// Returns `false`, touching nothing, when this CPU or this lane count has no register kernel;
+/// the caller then steps pixel by pixel.
+#[allow(clippy::too_many_arguments)]
+// Elsewhere there is no register kernel: only the lengths are checked before returning `false`.
+#[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
+pub(crate) fn row_u8<const K: usize>(
+    level: Level,
+    cost: &[u8],
+    lanes: usize,
+    nd: usize,
+    p1: u8,
+    p2: &[u8],
+    from_row: [FromRow<'_>; K],
+    sum: &mut [u16],
+    reverse: bool,
+    accumulate: bool,
+    trailing: Option<Trailing<'_>>,
+) -> bool {
+    assert!(lanes.is_multiple_of(LANES_U8) && nd <= lanes && lanes > 0);
+    let width = cost.len() / lanes;
+    assert!(cost.len() == width * lanes && p2.len() == width && sum.len() == width * nd);
+    let stride = lanes + 2;
+    for path in &from_row {
+        assert!(path.prev.is_empty() || (path.prev.len() == width * stride && path.prev_mins.len() == width));
+        assert!(path.dx.abs() <= 1 && path.p2.len() == width);
+        assert!(path.out.len() == width * stride && path.out_mins.len() == width);
+    }
+    if let Some(t) = &trailing {
+        assert!(t.cost.len() == cost.len() && t.p2.len() == width && t.sum.len() == sum.len());
+    }
+    if width == 0 || !row_u8_available(level, lanes) {
+        return false;
+    }
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: AVX-512 F/BW/VL is present (the level is only chosen when it is); the lengths
+        // were checked above and `lanes <= 64 * NV` for the chosen `NV`.
+        // Tests turn the VBMI kernel off to cover the other one on CPUs that have both.
+        #[cfg(test)]
+        let allowed = !tests::row::NO_VBMI.with(|n| n.get());
+        #[cfg(not(test))]
+        let allowed = true;
+        let vbmi = allowed && Features::capped(level).vbmi;
+        macro_rules! run {
+            ($nv:literal) => {
+                // SAFETY: AVX-512 F/BW/VL is present (the level is only chosen when it is), VBMI
+                // was detected for the VBMI kernel; the lengths were checked above and
+                // `64 * ($nv - 1) < lanes <= 64 * $nv`.
+                unsafe {
+                    if vbmi {
+                        avx512::row_avx512_vbmi::<$nv, K>(
+                            cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing,
+                        )
+                    } else {
+                        avx512::row_avx512::<$nv, K>(
+                            cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing,
+                        )
+                    }
+                }
+            };
+        }
+        match lanes.div_ceil(64) {
+            1 => run!(1),
+            2 => run!(2),
+            3 => run!(3),
+            _ => run!(4),
+        }
+        true
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    false
 }

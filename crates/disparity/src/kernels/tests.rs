@@ -6,6 +6,8 @@ use super::layout::*;
 use super::scalar::*;
 use super::*;
 
+pub(super) mod row;
+
 /// The 8-bit costs of one pixel: `narrow[k] = wide[k]` for the `nd` disparities, [`PAD_U8`] for
 /// the padding lanes (`narrow.len()` is a multiple of [`LANES_U8`]). The costs must fit in `u8`.
 fn narrow_costs(wide: &[u16], nd: usize, narrow: &mut [u8]) {

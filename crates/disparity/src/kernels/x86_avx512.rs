@@ -11,6 +11,9 @@ use super::layout::{
 };
 use super::x86_avx2::hmin_epu16_256;
 
+mod row;
+pub(super) use row::{row_avx512, row_avx512_vbmi};
+
 /// Minimum of the 32 unsigned 16-bit lanes.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
