@@ -141,3 +141,32 @@ pub(crate) struct Trailing<'a, T = u8> {
     pub p2: &'a [T],
     pub sum: &'a mut [u16],
 }
+
+/// A grey image as the census kernels read it: `samples` row-major, `width × height`.
+#[derive(Clone, Copy)]
+pub(crate) struct Samples<'a> {
+    pub samples: &'a [u16],
+    pub width: usize,
+    pub height: usize,
+}
+
+impl<'a> Samples<'a> {
+    /// Row `y`.
+    #[inline(always)]
+    pub(crate) fn row(&self, y: usize) -> &'a [u16] {
+        &self.samples[y * self.width..(y + 1) * self.width]
+    }
+
+    /// `(width, height)`.
+    #[inline(always)]
+    pub(crate) fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+}
+
+/// A census window: odd `width × height`, at most 65 pixels (64 census bits).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Window {
+    pub width: usize,
+    pub height: usize,
+}

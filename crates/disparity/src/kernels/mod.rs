@@ -15,8 +15,8 @@
 use std::sync::OnceLock;
 
 use layout::{
-    padded_lanes, padded_lanes_u8, AdRows, FromRow, PathIn, PathInU8, Trailing, BT_PAD, LANES, LANES_U8,
-    MAX_AD_CAP,
+    padded_lanes, padded_lanes_u8, AdRows, FromRow, PathIn, PathInU8, Samples, Trailing, Window, BT_PAD,
+    LANES, LANES_U8, MAX_AD_CAP,
 };
 
 /// One register of the SGM recurrence (Hirschmüller 2008, eq. 13) for one path, written once for
@@ -535,4 +535,69 @@ pub(crate) fn row_u8<const K: usize>(
     }
     #[cfg(not(target_arch = "x86_64"))]
     false
+}
+
+/// The row kernels; chosen once per transform (tests run each one the machine supports).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum CensusKernel {
+    Generic,
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
+    #[cfg(target_arch = "x86_64")]
+    Gfni,
+    /// [`CensusKernel::Gfni`] on the high bytes, for 8-bit images (see `census::is_byte_scaled`).
+    #[cfg(target_arch = "x86_64")]
+    GfniBytes,
+}
+
+impl CensusKernel {
+    /// The fastest kernel for `level`: the bit-matrix transpose needs AVX-512VBMI and GFNI on
+    /// top of the AVX-512 level (Intel Ice Lake, AMD Zen 4 and later), older AVX-512 CPUs keep the plain kernel.
+    pub(crate) fn for_level(level: Level) -> CensusKernel {
+        #[cfg(target_arch = "x86_64")]
+        {
+            match level {
+                Level::Avx512 if Features::capped(level).gfni => return CensusKernel::Gfni,
+                Level::Avx512 => return CensusKernel::Avx512,
+                Level::Avx2 => return CensusKernel::Avx2,
+                Level::Scalar => {}
+            }
+        }
+        let _ = level;
+        CensusKernel::Generic
+    }
+}
+
+pub(crate) fn census_row(
+    kernel: CensusKernel,
+    image: Samples<'_>,
+    window: Window,
+    y: usize,
+    padded: &mut [u16],
+    #[allow(unused_variables)] high_bytes: &mut [u8],
+    bits: &mut [u64],
+) {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `CensusKernel::Gfni` is only chosen when the CPU has AVX-512F/BW/VL/VBMI and GFNI.
+        CensusKernel::Gfni => unsafe { avx512::census_row_gfni(image, window, y, padded, bits) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `CensusKernel::GfniBytes` is only made from `CensusKernel::Gfni` (so the CPU has what it
+        // needs) and then `high_bytes` is as long as `padded`; the image is at least 64 wide.
+        CensusKernel::GfniBytes if image.width >= 64 => unsafe {
+            avx512::census_row_gfni_bytes(image, window, y, high_bytes, bits)
+        },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as above (only the CPU features matter here).
+        CensusKernel::GfniBytes => unsafe { avx512::census_row_gfni(image, window, y, padded, bits) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `CensusKernel::Avx512` is only chosen at the AVX-512 level, detected on this CPU.
+        CensusKernel::Avx512 => unsafe { avx512::census_row_avx512(image, window, y, padded, bits) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `CensusKernel::Avx2` is only chosen at the AVX2 level, detected on this CPU.
+        CensusKernel::Avx2 => unsafe { avx2::census_row_avx2(image, window, y, padded, bits) },
+        CensusKernel::Generic => scalar::census_row_scalar(image, window, y, padded, bits),
+    }
 }

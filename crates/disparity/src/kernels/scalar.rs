@@ -3,7 +3,8 @@
 //! Imports only [`super::layout`].
 
 use super::layout::{
-    feasible, padded_lanes, padded_lanes_u8, AdRows, BtRow, PathIn, PathInU8, BT_PAD, JUNK_COST, PAD_U8,
+    feasible, padded_lanes, padded_lanes_u8, AdRows, BtRow, PathIn, PathInU8, Samples, Window, BT_PAD,
+    JUNK_COST, PAD_U8,
 };
 
 /// The readable reference of [`super::path_step`].
@@ -202,5 +203,49 @@ pub(crate) fn bt_fill_in_order(row: &[u16], value: &mut [u8], lo: &mut [u8], hi:
         value[i] = v;
         lo[i] = l;
         hi[i] = h;
+    }
+}
+
+/// Fills `padded` with the window rows around row `y` (clamped to the image), each extended by
+/// `window.width / 2` copies of its border pixels at both ends.
+#[inline(always)]
+pub(crate) fn pad_window_rows(image: Samples<'_>, window: Window, y: usize, padded: &mut [u16]) {
+    let (width, height) = image.size();
+    let (rx, ry) = (window.width / 2, window.height / 2);
+    let pw = width + 2 * rx;
+    for (dy, p) in padded.chunks_exact_mut(pw).enumerate() {
+        let src = image.row((y + dy).saturating_sub(ry).min(height - 1));
+        p[..rx].fill(src[0]);
+        p[rx..rx + width].copy_from_slice(src);
+        p[rx + width..].fill(src[width - 1]);
+    }
+}
+
+/// One row of the transform: one pass over the row per window position, so the comparisons of
+/// many pixels run side by side.
+#[inline(always)]
+pub(crate) fn census_row_scalar(
+    image: Samples<'_>,
+    window: Window,
+    y: usize,
+    padded: &mut [u16],
+    bits: &mut [u64],
+) {
+    pad_window_rows(image, window, y, padded);
+    let width = image.size().0;
+    let (rx, ry) = (window.width / 2, window.height / 2);
+    let pw = width + 2 * rx;
+    let centre = image.row(y);
+    bits.fill(0);
+    for (dy, p) in padded.chunks_exact(pw).enumerate() {
+        for dx in 0..window.width {
+            if dx == rx && dy == ry {
+                continue;
+            }
+            let neighbours = &p[dx..dx + width];
+            for ((b, &n), &c) in bits.iter_mut().zip(neighbours).zip(centre) {
+                *b = (*b << 1) | u64::from(n < c);
+            }
+        }
     }
 }

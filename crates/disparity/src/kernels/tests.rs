@@ -298,3 +298,34 @@ proptest! {
         }
     }
 }
+
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn the_bit_matrix_transpose_transposes() {
+    if !crate::kernels::Features::capped(crate::kernels::Level::Avx512).gfni {
+        return;
+    }
+    let mut s = 0x9e37_79b9_7f4a_7c15u64;
+    for _ in 0..20 {
+        let rows: [u64; 64] = std::array::from_fn(|_| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        });
+        let mut out = [0u64; 64];
+        // SAFETY: the CPU has AVX-512F/BW/VL/VBMI and GFNI (checked above); `rows` and `out`
+        // are 64 qwords each.
+        unsafe {
+            use std::arch::x86_64::*;
+            let v = std::array::from_fn(|k| _mm512_loadu_si512(rows.as_ptr().add(8 * k).cast()));
+            for (k, t) in super::x86_avx512::transpose_64x64(v).into_iter().enumerate() {
+                _mm512_storeu_si512(out.as_mut_ptr().add(8 * k).cast(), t);
+            }
+        }
+        for (p, &o) in out.iter().enumerate() {
+            let expected = (0..64).fold(0u64, |acc, i| acc | ((rows[i] >> p) & 1) << i);
+            assert_eq!(o, expected, "row {p}");
+        }
+    }
+}

@@ -4,8 +4,8 @@
 
 use std::arch::x86_64::*;
 
-use super::layout::{feasible, padded_lanes, AdRows, PathIn, BT_PAD};
-use super::scalar::{bt_fill_in_order, cost_row_scalar, cost_row_u8_scalar};
+use super::layout::{feasible, padded_lanes, AdRows, PathIn, Samples, Window, BT_PAD};
+use super::scalar::{bt_fill_in_order, census_row_scalar, cost_row_scalar, cost_row_u8_scalar};
 
 /// Minimum of the 16 unsigned 16-bit lanes.
 #[inline]
@@ -222,4 +222,19 @@ pub(super) unsafe fn cost_row_avx2(
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn bt_fill_avx2(row: &[u16], value: &mut [u8], lo: &mut [u8], hi: &mut [u8]) {
     bt_fill_in_order(row, value, lo, hi)
+}
+
+/// [`census_row_scalar`] compiled for AVX2 (auto-vectorised over pixels).
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn census_row_avx2(
+    image: Samples<'_>,
+    window: Window,
+    y: usize,
+    padded: &mut [u16],
+    bits: &mut [u64],
+) {
+    census_row_scalar(image, window, y, padded, bits)
 }
