@@ -135,10 +135,13 @@ static MASKS: [u16; 48] = {
     m
 };
 
-/// AVX2 version of [`add_ad_avx512`], 16 disparities per step.
+/// Adds the AD term `min(weight · BT, cap)` of pixel `x` to its costs at `dst` for the feasible
+/// disparities `lo..hi` (as the AD part of [`super::scalar::cost_row_scalar`]), 16 disparities
+/// per step.
 ///
 /// # Safety
-/// The CPU must have AVX2; otherwise as [`add_ad_avx512`].
+/// The CPU must have AVX2; `dst` points at pixel `x`'s `padded_lanes(nd)` entries, `lo..hi` are
+/// its feasible disparities and the BT rows are padded by [`BT_PAD`].
 #[inline]
 #[target_feature(enable = "avx2")]
 unsafe fn add_ad_avx2(
