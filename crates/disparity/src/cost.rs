@@ -6,6 +6,9 @@ use crate::kernels;
 pub(crate) use crate::kernels::layout::{AdRows, BtRow, BT_PAD};
 use crate::MatchingCost;
 
+// The kernels' bound on the AD cap is the public one.
+const _: () = assert!(crate::MAX_AD_CAP == kernels::layout::MAX_AD_CAP);
+
 /// Cost of a disparity that points outside the right image: as bad as the worst match (all
 /// census bits differ and the intensity term at its cap), so path aggregation can cross the
 /// border but winner-takes-all never picks it.

@@ -187,7 +187,7 @@ pub enum MatchingCost {
 
 /// The largest [`MatchingCost::AdCensus`] cap: costs stay below 192, so path costs (at most
 /// cost + P2) summed over eight paths fit `u16` for every accepted P2.
-pub const MAX_AD_CAP: u8 = kernels::layout::MAX_AD_CAP;
+pub const MAX_AD_CAP: u8 = 127;
 
 /// Semi-Global Matching parameters. Costs are Hamming distances between census bit strings
 /// (plus, for [`MatchingCost::AdCensus`], the capped intensity term), so `p1`/`p2` are in

@@ -47,10 +47,10 @@ pub(crate) fn fits(max_cost: u16, p1: u16, max_p2: u16) -> bool {
     u32::from(max_cost) + u32::from(max_p2.max(p1)) <= u32::from(MAX_PATH_COST)
 }
 
-/// The largest AD-census intensity cap (re-exported as [`crate::MAX_AD_CAP`]): it keeps every
-/// matching cost within 8 bits and lets the 8-bit cost kernel look the term up in a 128-entry
-/// table.
-pub const MAX_AD_CAP: u8 = 127;
+/// The largest AD-census intensity cap the kernels accept: it keeps every matching cost within
+/// 8 bits and lets the 8-bit cost kernel look the term up in a 128-entry table. Equal to the
+/// public `MAX_AD_CAP` of the crate (checked at compile time in `cost.rs`).
+pub(crate) const MAX_AD_CAP: u8 = 127;
 
 /// Entries of padding at both ends of a [`BtRow`]: the SIMD kernels read whole 16- or 32-lane
 /// blocks that may start up to 15 entries before the first and end up to 31 after the last
