@@ -14,7 +14,7 @@
 //! strip (or an overlap reaching the bottom of the image) the result is exact SGM.
 //!
 //! Each pass computes the census Hamming costs of a row on the fly (no stored cost volume) and
-//! runs the path steps of a pixel in one fused SIMD kernel ([`crate::simd::path_step`]), which
+//! runs the path steps of a pixel in one fused SIMD kernel ([`crate::kernels::path_step`]), which
 //! adds the path costs straight into the sum volume. Rows are handed over through a per-row lock:
 //! the first pass to reach a row stores its sums, the second adds its own and, the row now being
 //! final, selects the row's disparities while it is still in cache.
@@ -27,9 +27,10 @@
 use std::sync::Mutex;
 
 use crate::cost::{AdRows, AlignedRow, BtRow};
-use crate::path_u8::{self, padded_lanes_u8, PAD_U8};
-use crate::simd::{self, padded_lanes, Level, PathIn, PAD};
-use crate::sweep::{FromRow, Trailing};
+use crate::kernels::layout::{
+    fits, padded_lanes, padded_lanes_u8, FromRow, PathIn, Trailing, MAX_PATH_COST, PAD, PAD_U8,
+};
+use crate::kernels::{self, features, Level};
 use crate::wta::{select_row, Selection, WtaScratch};
 use crate::{DisparityRange, GrayImage, Image, PathCount};
 
@@ -74,7 +75,7 @@ pub(crate) const MAX_P2: u16 = 4000;
 
 /// The type a pass keeps its path costs in: `u16` for any costs and penalties, `u8` (twice the
 /// disparities per instruction, half the memory traffic) when every path cost fits in it
-/// ([`path_u8::fits`]); the sums are `u16` either way and the results identical.
+/// ([`fits`]); the sums are `u16` either way and the results identical.
 trait PathCost: Copy + Default + Send + Sync + 'static {
     /// Pad at both ends of a path-cost vector.
     const PAD: Self;
@@ -82,8 +83,8 @@ trait PathCost: Copy + Default + Send + Sync + 'static {
     fn lanes(nd: usize) -> usize;
     /// A value known to fit (a penalty or a path minimum).
     fn narrow(v: u16) -> Self;
-    /// Makes row `y`'s matching costs: [`simd::cost_row`] into `wide` for `u16`,
-    /// [`simd::cost_row_u8`] straight into `narrow` for `u8` (no `u16` row in between).
+    /// Makes row `y`'s matching costs: [`kernels::cost_row`] into `wide` for `u16`,
+    /// [`kernels::cost_row_u8`] straight into `narrow` for `u8` (no `u16` row in between).
     fn make_costs(
         inputs: &Inputs<'_>,
         y: usize,
@@ -93,7 +94,7 @@ trait PathCost: Copy + Default + Send + Sync + 'static {
     );
     /// This pass's cost row made by [`PathCost::make_costs`]: `wide` for `u16`, `narrow` for `u8`.
     fn costs<'a>(level: Level, wide: &'a [u16], nd: usize, narrow: &'a mut [Self]) -> &'a [Self];
-    /// [`simd::path_step`] in this type.
+    /// [`kernels::path_step`] in this type.
     fn step<const N: usize>(
         level: Level,
         cost: &[Self],
@@ -105,7 +106,7 @@ trait PathCost: Copy + Default + Send + Sync + 'static {
     ) -> [Self; N];
     /// Whether [`PathCost::row`] has a kernel for this level and lane count.
     fn has_row(level: Level, lanes: usize) -> bool;
-    /// [`crate::sweep::row_u8`] in this type: a row of a pass with the horizontal path in
+    /// [`crate::kernels::row_u8`] in this type: a row of a pass with the horizontal path in
     /// registers; `false` (nothing done) where there is no such kernel.
     #[allow(clippy::too_many_arguments)]
     fn row<const K: usize>(
@@ -135,7 +136,7 @@ impl PathCost for u16 {
     fn make_costs(inputs: &Inputs<'_>, y: usize, ad: Option<AdRows<'_>>, wide: &mut [u16], _: &mut [u16]) {
         let (census_left, census_right) = (inputs.census_left.row(y), inputs.census_right.row(y));
         let (min, nd) = (inputs.range.min, inputs.range.count());
-        simd::cost_row(simd::features(), census_left, census_right, min, nd, inputs.worst, ad, wide);
+        kernels::cost_row(features(), census_left, census_right, min, nd, inputs.worst, ad, wide);
     }
     fn costs<'a>(_: Level, wide: &'a [u16], _: usize, _: &'a mut [u16]) -> &'a [u16] {
         wide
@@ -150,7 +151,7 @@ impl PathCost for u16 {
         sum: &mut [u16],
         accumulate: bool,
     ) -> [u16; N] {
-        simd::path_step(level, cost, p1, ins, outs, sum, accumulate)
+        kernels::path_step(level, cost, p1, ins, outs, sum, accumulate)
     }
     fn has_row(_: Level, _: usize) -> bool {
         false
@@ -179,14 +180,14 @@ impl PathCost for u8 {
         padded_lanes_u8(nd)
     }
     fn narrow(v: u16) -> u8 {
-        debug_assert!(v <= path_u8::MAX_PATH_COST);
+        debug_assert!(v <= MAX_PATH_COST);
         v as u8
     }
     #[inline(always)]
     fn make_costs(inputs: &Inputs<'_>, y: usize, ad: Option<AdRows<'_>>, _: &mut [u16], narrow: &mut [u8]) {
         let (census_left, census_right) = (inputs.census_left.row(y), inputs.census_right.row(y));
         let (min, nd) = (inputs.range.min, inputs.range.count());
-        simd::cost_row_u8(simd::features(), census_left, census_right, min, nd, inputs.worst, ad, narrow);
+        kernels::cost_row_u8(features(), census_left, census_right, min, nd, inputs.worst, ad, narrow);
     }
     fn costs<'a>(_: Level, _: &'a [u16], _: usize, narrow: &'a mut [u8]) -> &'a [u8] {
         narrow
@@ -201,10 +202,10 @@ impl PathCost for u8 {
         sum: &mut [u16],
         accumulate: bool,
     ) -> [u8; N] {
-        path_u8::path_step_u8(level, cost, p1, ins, outs, sum, accumulate)
+        kernels::path_step_u8(level, cost, p1, ins, outs, sum, accumulate)
     }
     fn has_row(level: Level, lanes: usize) -> bool {
-        crate::sweep::row_u8_available(level, lanes)
+        crate::kernels::row_u8_available(level, lanes)
     }
     #[inline(always)]
     fn row<const K: usize>(
@@ -220,14 +221,14 @@ impl PathCost for u8 {
         accumulate: bool,
         trailing: Option<Trailing<'_, u8>>,
     ) -> bool {
-        crate::sweep::row_u8(level, cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing)
+        crate::kernels::row_u8(level, cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing)
     }
 }
 
 /// Whether the passes run on 8-bit path costs: only where the 8-bit kernel is vectorised
 /// (AVX-512) and every path cost fits.
 fn use_u8(inputs: &Inputs<'_>) -> bool {
-    simd::features().level == Level::Avx512 && path_u8::fits(inputs.worst, inputs.p1, inputs.p2.max())
+    features().level.avx512() && fits(inputs.worst, inputs.p1, inputs.p2.max())
 }
 
 /// What the aggregation reads.
@@ -474,51 +475,17 @@ impl<T: PathCost> PassState<T> {
     }
 }
 
-/// Per-level entry points of a `#[inline(always)]` generic body, so the SIMD kernels inline into it.
-macro_rules! dispatch {
-    ($generic:ident, $avx512:ident, $avx2:ident, ($($arg:ident: $ty:ty),*)) => {
-        /// # Safety
-        /// The CPU must have AVX-512F/BW/VL.
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2")]
-        unsafe fn $avx512<T: PathCost>($($arg: $ty),*) {
-            $generic($($arg),*, Level::Avx512)
-        }
-
-        /// # Safety
-        /// The CPU must have AVX2.
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = "avx2")]
-        unsafe fn $avx2<T: PathCost>($($arg: $ty),*) {
-            $generic($($arg),*, Level::Avx2)
-        }
-    };
-}
-
-dispatch!(run_rows_generic, run_rows_avx512, run_rows_avx2,
-    (state: &mut PassState<T>, inputs: &Inputs<'_>, y0: usize, y1: usize, rows: &[Mutex<RowSlot<'_>>]));
-dispatch!(stream_rows_generic, stream_rows_avx512, stream_rows_avx2,
-    (state: &mut PassState<T>, inputs: &Inputs<'_>, warm: usize, y0: usize, y1: usize, sum: &mut [u16], disparity: &mut [f32]));
-
-/// Runs `state`'s pass over rows `y0..y1` (in the pass's direction). With `rows` (one slot per
-/// row from `y0`) it stores or adds the sums and selects the finished rows; with no slots it only
-/// advances the paths (warm-up).
-fn run_rows<T: PathCost>(
-    state: &mut PassState<T>,
-    inputs: &Inputs<'_>,
-    y0: usize,
-    y1: usize,
-    rows: &[Mutex<RowSlot<'_>>],
-) {
-    match simd::features().level {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: the level was detected on this CPU.
-        Level::Avx512 => unsafe { run_rows_avx512(state, inputs, y0, y1, rows) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above.
-        Level::Avx2 => unsafe { run_rows_avx2(state, inputs, y0, y1, rows) },
-        _ => run_rows_generic(state, inputs, y0, y1, rows, Level::Scalar),
-    }
+kernels::multiversion! {
+    /// Runs `state`'s pass over rows `y0..y1` (in the pass's direction). With `rows` (one slot per
+    /// row from `y0`) it stores or adds the sums and selects the finished rows; with no slots it
+    /// only advances the paths (warm-up).
+    fn run_rows<T: PathCost>(
+        state: &mut PassState<T>,
+        inputs: &Inputs<'_>,
+        y0: usize,
+        y1: usize,
+        rows: &[Mutex<RowSlot<'_>>],
+    ) => run_rows_generic;
 }
 
 #[inline(always)]
@@ -550,24 +517,17 @@ fn run_rows_generic<T: PathCost>(
     }
 }
 
-fn stream_rows<T: PathCost>(
-    state: &mut PassState<T>,
-    inputs: &Inputs<'_>,
-    warm: usize,
-    y0: usize,
-    y1: usize,
-    sum: &mut [u16],
-    disparity: &mut [f32],
-) {
-    match simd::features().level {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: the level was detected on this CPU.
-        Level::Avx512 => unsafe { stream_rows_avx512(state, inputs, warm, y0, y1, sum, disparity) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above.
-        Level::Avx2 => unsafe { stream_rows_avx2(state, inputs, warm, y0, y1, sum, disparity) },
-        _ => stream_rows_generic(state, inputs, warm, y0, y1, sum, disparity, Level::Scalar),
-    }
+kernels::multiversion! {
+    /// The single pass over rows `warm..y1`, see [`stream_rows_generic`].
+    fn stream_rows<T: PathCost>(
+        state: &mut PassState<T>,
+        inputs: &Inputs<'_>,
+        warm: usize,
+        y0: usize,
+        y1: usize,
+        sum: &mut [u16],
+        disparity: &mut [f32],
+    ) => stream_rows_generic;
 }
 
 /// The ← path's P2 of row `y`: `p2[x]` for stepping into `x` from `x + 1` (the last entry is not

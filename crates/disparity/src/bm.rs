@@ -9,7 +9,10 @@
 
 use rayon::prelude::*;
 
-use crate::{check_pair, BmCost, BmParams, DisparityMap, Error, GrayImage, Subpixel};
+use crate::winner::{
+    ambiguous, keep_smaller, left_right_check, refined_offset, right_view_winners, winner, RangeEnds, Ties,
+};
+use crate::{check_pair, BmCost, BmParams, DisparityMap, Error, GrayImage};
 
 /// The largest accepted window side; keeps every window sum well inside `u32`.
 pub(crate) const MAX_BLOCK_SIZE: usize = 255;
@@ -120,7 +123,7 @@ impl Matcher<'_> {
         let mut column_sums = vec![0u32; w * n];
         let mut pixel = vec![0u32; w * n];
         let mut window = vec![0u32; w * n];
-        let mut right_best = vec![None; w];
+        let mut right = RightView { cost: vec![0; w], index: vec![0; w] };
         for yy in y0 - r..=y0 + r {
             self.pixel_costs(yy, &mut pixel);
             column_sums.iter_mut().zip(&pixel).for_each(|(s, &c)| *s += c);
@@ -134,7 +137,7 @@ impl Matcher<'_> {
                 column_sums.iter_mut().zip(&pixel).for_each(|(s, &c)| *s -= c);
             }
             self.window_sums(&column_sums, &mut window);
-            self.select_row(&window, &mut right_best, out_row);
+            self.select_row(&window, &mut right, out_row);
         }
     }
 
@@ -166,73 +169,49 @@ impl Matcher<'_> {
         (lo <= hi).then_some((lo as usize, hi as usize))
     }
 
-    /// WTA, uniqueness, left-right check and subpixel refinement for one row of window costs.
-    fn select_row(&self, window: &[u32], right_best: &mut [Option<usize>], out: &mut [f32]) {
+    /// WTA, uniqueness, left-right check and subpixel refinement for one row of window costs
+    /// (the shared [`crate::winner`] functions with BM's choices: ties with the uniqueness bound
+    /// are ambiguous, the range ends are rejected here, the left-right check compares the refined
+    /// disparity).
+    fn select_row(&self, window: &[u32], right: &mut RightView, out: &mut [f32]) {
         let (w, n, r) = (self.width, self.count, self.radius);
         let costs = |x: usize| &window[x * n..(x + 1) * n];
+        // The disparity indices searched for left pixel `x` (none outside the window columns).
+        let searched = |x: usize| match self.feasible(x) {
+            Some((lo, hi)) if x >= r && x < w - r => lo..hi + 1,
+            _ => 0..0,
+        };
 
         if self.params.lr_max_diff.is_some() {
-            // Right pixel xr sees left pixel xr + min + k at disparity index k.
-            for (xr, best) in right_best.iter_mut().enumerate() {
-                *best = None;
-                if xr < r || xr >= w - r {
-                    continue;
-                }
-                let mut best_cost = u32::MAX;
-                for k in 0..n {
-                    let x = xr as i64 + self.min + k as i64;
-                    if x < r as i64 || x >= (w - r) as i64 {
-                        continue;
-                    }
-                    let c = costs(x as usize)[k];
-                    if c < best_cost {
-                        best_cost = c;
-                        *best = Some(k);
-                    }
-                }
-            }
+            right_view_winners(
+                self.min,
+                costs,
+                searched,
+                keep_smaller,
+                u32::MAX,
+                &mut right.cost,
+                &mut right.index,
+            );
         }
 
+        let ends = RangeEnds::indices(self.count);
         for (x, out) in out.iter_mut().enumerate().take(w - r).skip(r) {
             *out = f32::NAN;
             let Some((lo, hi)) = self.feasible(x) else { continue };
-            let c = costs(x);
-            let mut best = lo;
-            for k in lo..=hi {
-                if c[k] < c[best] {
-                    best = k;
-                }
-            }
+            let (c, ks) = (costs(x), lo..hi + 1);
+            let best = winner(c, ks.clone());
             // At an end of the searched disparities the true minimum may lie beyond: rejected as
             // in SGM (`post::reject_range_ends`), the image edge only in the lowest quarter.
-            let (first, last) = (0, self.count - 1);
-            if best == first
-                || best == last
-                || (best == lo && lo > first)
-                || (best == hi && hi < self.count / 4)
-            {
+            if ends.at_end(best, lo, hi) {
                 continue;
             }
-            if self.params.uniqueness_ratio > 0 {
-                let second = (lo..=hi).filter(|&k| k.abs_diff(best) > 1).map(|k| c[k]).min();
-                if let Some(second) = second {
-                    if second as u64 * 100 <= c[best] as u64 * (100 + self.params.uniqueness_ratio as u64) {
-                        continue;
-                    }
-                }
+            if ambiguous(c, ks.clone(), best, self.params.uniqueness_ratio, Ties::Ambiguous) {
+                continue;
             }
-            let offset = if best > lo && best < hi {
-                subpixel_offset(self.params.subpixel, c[best - 1], c[best], c[best + 1])
-            } else {
-                0.0
-            };
-            let d = (self.min + best as i64) as f32 + offset;
+            let d = (self.min + best as i64) as f32 + refined_offset(c, ks, best, self.params.subpixel);
             if let Some(max_diff) = self.params.lr_max_diff {
                 let xr = x as i64 - d.round() as i64;
-                let consistent = (0..w as i64).contains(&xr)
-                    && right_best[xr as usize]
-                        .is_some_and(|k| (d - (self.min + k as i64) as f32).abs() <= max_diff);
-                if !consistent {
+                if left_right_check(&right.index, xr, d, self.min, max_diff).is_err() {
                     continue;
                 }
             }
@@ -241,27 +220,11 @@ impl Matcher<'_> {
     }
 }
 
-/// The refinement in `[-0.5, 0.5]` of the minimum `c0` between neighbours `cm` (d - 1) and `cp`.
-fn subpixel_offset(method: Subpixel, cm: u32, c0: u32, cp: u32) -> f32 {
-    let (cm, c0, cp) = (cm as f32, c0 as f32, cp as f32);
-    let offset = match method {
-        Subpixel::None => return 0.0,
-        Subpixel::Parabola => {
-            let curvature = cm - 2.0 * c0 + cp;
-            if curvature <= 0.0 {
-                return 0.0;
-            }
-            (cm - cp) / (2.0 * curvature)
-        }
-        Subpixel::Equiangular => {
-            let slope = (cm - c0).max(cp - c0);
-            if slope <= 0.0 {
-                return 0.0;
-            }
-            (cm - cp) / (2.0 * slope)
-        }
-    };
-    offset.clamp(-0.5, 0.5)
+/// The right view's winners of one row (indexed by `width - 1 - xr`, see
+/// [`right_view_winners`]).
+struct RightView {
+    cost: Vec<u32>,
+    index: Vec<u32>,
 }
 
 /// Horizontal Sobel response (`[-1 0 1; -2 0 2; -1 0 1]`, replicated borders) clamped to

@@ -1,8 +1,13 @@
 //! Matching costs: Hamming distances between left and right census strings, optionally plus a
 //! capped Birchfield–Tomasi intensity term (AD-census). They are computed row by row inside the
-//! aggregation passes ([`crate::simd::cost_row`]), never stored as a `W·H·D` volume.
+//! aggregation passes ([`crate::kernels::cost_row`]), never stored as a `W·H·D` volume.
 
+use crate::kernels;
+pub(crate) use crate::kernels::layout::{AdRows, BtRow, BT_PAD};
 use crate::MatchingCost;
+
+// The kernels' bound on the AD cap is the public one.
+const _: () = assert!(crate::MAX_AD_CAP == kernels::layout::MAX_AD_CAP);
 
 /// Cost of a disparity that points outside the right image: as bad as the worst match (all
 /// census bits differ and the intensity term at its cap), so path aggregation can cross the
@@ -13,29 +18,6 @@ pub(crate) fn infeasible_cost(census_bits: u32, cost: MatchingCost) -> u16 {
         MatchingCost::AdCensus { cap, .. } => u32::from(cap),
     };
     (census_bits + cap).min(255) as u16
-}
-
-/// Entries of padding at both ends of a [`BtRow`]: the SIMD kernels read whole 16- or 32-lane
-/// blocks that may start up to 15 entries before the first and end up to 31 after the last
-/// feasible one.
-pub(crate) const BT_PAD: usize = 32;
-
-/// The Birchfield–Tomasi inputs of one image row in 8-bit grey levels: per pixel its value and
-/// the minimum and maximum of it and its two half-pixel interpolations with the neighbours
-/// (clamped at the row ends), each rounded from the 16-bit samples (`v / 257`). The right row is
-/// stored reversed (pixel `x` at `BT_PAD + width - 1 - x`), so that ascending disparities read
-/// ascending addresses; the left row in order (pixel `x` at `BT_PAD + x`). Pads hold 0.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct BtRow {
-    pub value: Vec<u8>,
-    pub lo: Vec<u8>,
-    pub hi: Vec<u8>,
-}
-
-/// `s / 514` rounded half up: a sum of two 16-bit samples in 8-bit grey levels.
-#[inline]
-fn grey_of_pair_sum(s: u32) -> u8 {
-    ((s + 257) / 514) as u8
 }
 
 impl BtRow {
@@ -56,68 +38,12 @@ impl BtRow {
         }
         let span = BT_PAD..BT_PAD + width;
         let (value, lo, hi) = (&mut self.value[span.clone()], &mut self.lo[span.clone()], &mut self.hi[span]);
-        match crate::simd::features().level {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: the level was detected on this CPU (AVX-512F/BW/VL implies AVX2).
-            crate::simd::Level::Avx512 | crate::simd::Level::Avx2 => unsafe { fill_avx2(row, value, lo, hi) },
-            _ => fill_in_order(row, value, lo, hi),
-        }
+        kernels::bt_fill(kernels::features().level, row, value, lo, hi);
         if reversed {
             value.reverse();
             lo.reverse();
             hi.reverse();
         }
-    }
-}
-
-/// [`fill_in_order`] compiled for AVX2 (eight 32-bit lanes for the divisions by 514).
-///
-/// # Safety
-/// The CPU must have AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn fill_avx2(row: &[u16], value: &mut [u8], lo: &mut [u8], hi: &mut [u8]) {
-    fill_in_order(row, value, lo, hi)
-}
-
-/// The BT inputs of `row` in order into `value`, `lo` and `hi` (each `row.len()` entries).
-/// The minimum of the doubled centre and the two doubled half-pixel interpolations is
-/// `c + min(a, b, c)` (and likewise the maximum), and rounding is monotonic, so each output is
-/// one rounding of one sum.
-#[inline(always)]
-fn fill_in_order(row: &[u16], value: &mut [u8], lo: &mut [u8], hi: &mut [u8]) {
-    let width = row.len();
-    assert!(value.len() == width && lo.len() == width && hi.len() == width);
-    let pixel = |a: u16, c: u16, b: u16| {
-        let (min, max) = (c.min(a).min(b), c.max(a).max(b));
-        let c32 = u32::from(c);
-        (
-            grey_of_pair_sum(2 * c32),
-            grey_of_pair_sum(c32 + u32::from(min)),
-            grey_of_pair_sum(c32 + u32::from(max)),
-        )
-    };
-    let mut put = |x: usize, (v, l, h): (u8, u8, u8)| {
-        value[x] = v;
-        lo[x] = l;
-        hi[x] = h;
-    };
-    match width {
-        0 => return,
-        1 => return put(0, pixel(row[0], row[0], row[0])),
-        _ => {
-            put(0, pixel(row[0], row[0], row[1]));
-            put(width - 1, pixel(row[width - 2], row[width - 1], row[width - 1]));
-        }
-    }
-    let inner = 1..width - 1;
-    let (value, lo, hi) = (&mut value[inner.clone()], &mut lo[inner.clone()], &mut hi[inner]);
-    let (a, c, b) = (&row[..width - 2], &row[1..width - 1], &row[2..]);
-    for i in 0..width - 2 {
-        let (v, l, h) = pixel(a[i], c[i], b[i]);
-        value[i] = v;
-        lo[i] = l;
-        hi[i] = h;
     }
 }
 
@@ -157,29 +83,12 @@ impl<T> std::ops::DerefMut for AlignedRow<T> {
     }
 }
 
-/// The AD part of the cost kernel's input: the left row in order, the right row reversed, and
-/// the term `min(weight · BT, cap)`.
-#[derive(Clone, Copy)]
-pub(crate) struct AdRows<'a> {
-    pub left: &'a BtRow,
-    pub right: &'a BtRow,
-    pub weight: u16,
-    pub cap: u16,
-}
-
-/// The Birchfield–Tomasi dissimilarity of two pixels given as `(value, lo, hi)`.
-#[inline(always)]
-pub(crate) fn bt(l: (u8, u8, u8), r: (u8, u8, u8)) -> u8 {
-    let d_lr = l.0.saturating_sub(r.2).max(r.1.saturating_sub(l.0));
-    let d_rl = r.0.saturating_sub(l.2).max(l.1.saturating_sub(r.0));
-    d_lr.min(d_rl)
-}
-
 #[cfg(test)]
 mod tests {
     use proptest::prelude::*;
 
     use super::*;
+    use crate::kernels::scalar::grey_of_pair_sum;
 
     /// The original per-pixel loop of [`BtRow::fill`] (fresh zero-filled buffers every call).
     fn fill_reference(row: &[u16], reversed: bool) -> BtRow {

@@ -66,7 +66,13 @@ const MEDIAN9: [(usize, usize); 19] = [
 /// Medians of all interior 3×3 windows of row `y` (`1 <= y < height - 1`): each exchange of the
 /// network runs over the whole row, so it vectorises across pixels.
 #[inline(always)]
-fn full_window_medians(src: &[f32], width: usize, y: usize, scratch: &mut MedianScratch) {
+fn full_window_medians_generic(
+    src: &[f32],
+    width: usize,
+    y: usize,
+    scratch: &mut MedianScratch,
+    _level: crate::kernels::Level,
+) {
     let n = width - 2;
     scratch.nans[1..=n].fill(0);
     for (i, w) in scratch.window.iter_mut().enumerate() {
@@ -90,16 +96,9 @@ fn full_window_medians(src: &[f32], width: usize, y: usize, scratch: &mut Median
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2")]
-unsafe fn full_window_medians_avx512(src: &[f32], width: usize, y: usize, scratch: &mut MedianScratch) {
-    full_window_medians(src, width, y, scratch)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn full_window_medians_avx2(src: &[f32], width: usize, y: usize, scratch: &mut MedianScratch) {
-    full_window_medians(src, width, y, scratch)
+crate::kernels::multiversion! {
+    /// [`full_window_medians_generic`] compiled for the detected level.
+    fn full_window_medians(src: &[f32], width: usize, y: usize, scratch: &mut MedianScratch) => full_window_medians_generic;
 }
 
 /// `f32::total_cmp` order as a plain `i32` order (an involution on the bits).
@@ -113,15 +112,7 @@ fn median_row(disparity: &DisparityMap, y: usize, row: &mut [f32], scratch: &mut
     let src = disparity.as_slice();
     let interior = y >= 1 && y + 1 < height && width >= 3;
     if interior {
-        match crate::simd::features().level {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: the level was detected on this CPU.
-            crate::simd::Level::Avx512 => unsafe { full_window_medians_avx512(src, width, y, scratch) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above.
-            crate::simd::Level::Avx2 => unsafe { full_window_medians_avx2(src, width, y, scratch) },
-            _ => full_window_medians(src, width, y, scratch),
-        }
+        full_window_medians(src, width, y, scratch);
     }
     let ys = y.saturating_sub(1)..(y + 2).min(height);
     for (x, o) in row.iter_mut().enumerate() {

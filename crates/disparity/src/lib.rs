@@ -29,21 +29,20 @@ mod cost;
 mod far_islands;
 mod fill;
 mod filter;
+mod kernels;
 mod memory;
 mod names;
-mod path_u8;
 mod post;
 mod radiometric;
 #[cfg(test)]
 mod reference;
 mod sgm;
-mod simd;
 mod snap;
 mod speckle;
 #[doc(hidden)]
 pub mod stages;
 mod status;
-mod sweep;
+mod winner;
 mod wta;
 
 pub use bm::block_match;

@@ -69,7 +69,7 @@ pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPla
         let threads = rayon::current_num_threads().clamp(1, height.max(1));
         // Two rows of sums and a second cost row: the ← path of each row runs beside the next
         // row's paths (at most the size of the `u16` cost row counted in the pass state).
-        let held_cost = width.saturating_mul(crate::simd::padded_lanes(nd)).saturating_mul(2);
+        let held_cost = width.saturating_mul(crate::kernels::layout::padded_lanes(nd)).saturating_mul(2);
         let per_thread = pass_state_bytes(width, nd, params.paths)
             .saturating_add(row_bytes.saturating_mul(2))
             .saturating_add(held_cost);

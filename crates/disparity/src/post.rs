@@ -6,6 +6,7 @@ use crate::filter::{median_3x3, weighted_median, weighted_median_at_edges};
 use crate::snap::snap_edges;
 use crate::speckle::remove_speckles;
 use crate::status::{tagged_nan, untag, PixelStatus};
+use crate::winner::RangeEnds;
 use crate::{DisparityMap, DisparityRange, Error, GrayImage, Image, SgmParams};
 
 /// The full result of [`crate::sgm_detailed`].
@@ -90,8 +91,7 @@ pub(crate) fn finish(mut disparity: DisparityMap, left: &GrayImage, params: &Sgm
 /// moves by at most half a pixel).
 pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRange) {
     let width = disparity.width();
-    let (first, last) = (range.min as f32, (range.max - 1) as f32);
-    let trusted_edge = range.min as f32 + (range.count() / 4) as f32;
+    let ends = RangeEnds::disparities(range);
     for row in disparity.as_mut_slice().chunks_exact_mut(width.max(1)) {
         for (x, d) in row.iter_mut().enumerate() {
             if d.is_nan() {
@@ -99,9 +99,7 @@ pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRa
             }
             let ks = crate::wta::feasible_left(x, width, range);
             let (lo, hi) = (range.min as f32 + ks.start as f32, range.min as f32 + ks.end as f32 - 1.0);
-            let at_end =
-                *d == first || *d == last || (*d == lo && lo > first) || (*d == hi && hi < trusted_edge);
-            if at_end {
+            if ends.at_end(*d, lo, hi) {
                 *d = tagged_nan(PixelStatus::RangeEnd);
             }
         }

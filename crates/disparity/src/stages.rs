@@ -4,7 +4,8 @@
 //! throughput can be measured alone.
 
 use crate::cost::{infeasible_cost, AdRows, BtRow};
-use crate::simd::{self, padded_lanes};
+use crate::kernels::layout::{fits, padded_lanes, padded_lanes_u8};
+use crate::kernels::{self, features};
 use crate::{DisparityMap, GrayImage, Image, MatchingCost, SgmParams};
 
 /// Census transform of one image with the window of `params`.
@@ -28,10 +29,9 @@ pub fn matching_costs(
     let nd = params.range.count();
     let census_bits = (params.census.width * params.census.height - 1) as u32;
     let worst = infeasible_cost(census_bits, params.matching_cost);
-    let narrow = simd::features().level == simd::Level::Avx512
-        && crate::path_u8::fits(worst, params.p1, params.p2.max(params.p1));
+    let narrow = features().level.avx512() && fits(worst, params.p1, params.p2.max(params.p1));
     let mut row = vec![0u16; census_left.width() * padded_lanes(nd)];
-    let mut row_u8 = vec![0u8; census_left.width() * crate::path_u8::padded_lanes_u8(nd)];
+    let mut row_u8 = vec![0u8; census_left.width() * padded_lanes_u8(nd)];
     let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());
     let mut check = 0u64;
     for y in 0..census_left.height() {
@@ -50,10 +50,10 @@ pub fn matching_costs(
         };
         let (l, r, min) = (census_left.row(y), census_right.row(y), params.range.min);
         if narrow {
-            simd::cost_row_u8(simd::features(), l, r, min, nd, worst, ad, &mut row_u8);
+            kernels::cost_row_u8(features(), l, r, min, nd, worst, ad, &mut row_u8);
             check = check.wrapping_add(u64::from(row_u8[y % row_u8.len()]));
         } else {
-            simd::cost_row(simd::features(), l, r, min, nd, worst, ad, &mut row);
+            kernels::cost_row(features(), l, r, min, nd, worst, ad, &mut row);
             check = check.wrapping_add(u64::from(row[y % row.len()]));
         }
     }
@@ -78,9 +78,5 @@ pub fn median(disparity: &DisparityMap) -> DisparityMap {
 
 /// The instruction set the kernels run with on this machine (`STEREO_DISPARITY_SIMD` caps it).
 pub fn simd_level() -> &'static str {
-    match simd::features().level {
-        simd::Level::Scalar => "scalar",
-        simd::Level::Avx2 => "avx2",
-        simd::Level::Avx512 => "avx512",
-    }
+    features().level.name()
 }

@@ -1,8 +1,11 @@
 //! Winner-takes-all disparity selection over an aggregated cost volume (`[y][x][d]`), with
 //! subpixel refinement, the uniqueness test and the left-right consistency check.
 
-use crate::simd::{self, Level};
+use crate::kernels::{self, Level};
 use crate::status::{tagged_nan, PixelStatus};
+#[cfg(test)]
+use crate::winner::subpixel_offset;
+use crate::winner::{ambiguous, left_right_check, refined_offset, right_view_winners, Ties, WinnerIndex};
 use crate::{DisparityRange, Subpixel};
 
 /// The tagged NaN of a pixel that failed the left-right check: an occlusion when the right
@@ -44,52 +47,6 @@ fn feasible_right(xr: usize, width: usize, range: DisparityRange) -> std::ops::R
     lo as usize..hi as usize
 }
 
-/// Sub-pixel offset in `[-0.5, 0.5]` of the cost minimum from the three costs around it.
-#[inline]
-pub(crate) fn subpixel_offset(method: Subpixel, before: f32, best: f32, after: f32) -> f32 {
-    let offset = match method {
-        Subpixel::None => 0.0,
-        Subpixel::Parabola => {
-            let curvature = before - 2.0 * best + after;
-            if curvature > 0.0 {
-                (before - after) / (2.0 * curvature)
-            } else {
-                0.0
-            }
-        }
-        Subpixel::Equiangular => {
-            let slope = (before - best).max(after - best);
-            if slope > 0.0 {
-                (before - after) / (2.0 * slope)
-            } else {
-                0.0
-            }
-        }
-    };
-    offset.clamp(-0.5, 0.5)
-}
-
-/// The uniqueness test: whether a disparity more than one index away from `best` (within `ks`)
-/// costs less than `(100 + ratio) %` of the best cost. Ratio 0 never rejects.
-#[inline(always)]
-fn ambiguous(c: &[u16], ks: std::ops::Range<usize>, best: usize, ratio: u32) -> bool {
-    if ratio == 0 {
-        return false;
-    }
-    let second = ks.filter(|k| k.abs_diff(best) > 1).map(|k| c[k]).min();
-    second.is_some_and(|second| u64::from(c[best]) * u64::from(100 + ratio) > u64::from(second) * 100)
-}
-
-/// The subpixel offset of winner `best` from its neighbours' costs (0 at the ends of `ks`).
-#[inline(always)]
-fn refined_offset(c: &[u16], ks: std::ops::Range<usize>, best: usize, method: Subpixel) -> f32 {
-    if best > ks.start && best + 1 < ks.end {
-        subpixel_offset(method, f32::from(c[best - 1]), f32::from(c[best]), f32::from(c[best + 1]))
-    } else {
-        0.0
-    }
-}
-
 /// Per-thread buffers of [`select_row`], allocated once per pass.
 pub(crate) struct WtaScratch {
     /// Right view, indexed by `width - 1 - xr`: the best cost so far and its disparity index.
@@ -120,7 +77,7 @@ impl WtaScratch {
 }
 
 /// Marks a right pixel without any feasible disparity.
-const NO_MATCH: u16 = u16::MAX;
+const NO_MATCH: u16 = <u16 as WinnerIndex>::NONE;
 
 /// Selects the left-view disparities of one row (`costs` is `[x][d]`) into `out`, NaN where
 /// rejected. Equal to [`select_row_reference`] (ties go to the lowest disparity index in both
@@ -135,54 +92,23 @@ pub(crate) fn select_row(
     out: &mut [f32],
 ) {
     #[cfg(target_arch = "x86_64")]
-    {
-        match simd::features().level {
-            // SAFETY: the level was detected on this CPU.
-            Level::Avx512 if nd <= fused::MAX_DISPARITIES => {
-                return unsafe { fused::select_row_avx512(costs, width, nd, sel, scratch, out) }
-            }
-            // SAFETY: as above.
-            Level::Avx512 => return unsafe { select_row_avx512(costs, width, nd, sel, scratch, out) },
-            // SAFETY: as above.
-            Level::Avx2 => return unsafe { select_row_avx2(costs, width, nd, sel, scratch, out) },
-            Level::Scalar => {}
-        }
+    if kernels::features().level.avx512() && nd <= fused::MAX_DISPARITIES {
+        // SAFETY: the AVX-512 level was detected on this CPU.
+        return unsafe { fused::select_row_avx512(costs, width, nd, sel, scratch, out) };
     }
-    select_row_generic(costs, width, nd, sel, scratch, out, Level::Scalar)
+    select_row_levels(costs, width, nd, sel, scratch, out)
 }
 
-/// [`select_row_generic`] compiled for AVX-512BW, with the SIMD kernels inlined.
-///
-/// # Safety
-/// The CPU must have AVX-512F/BW/VL.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,popcnt")]
-unsafe fn select_row_avx512(
-    costs: &[u16],
-    width: usize,
-    nd: usize,
-    sel: Selection,
-    scratch: &mut WtaScratch,
-    out: &mut [f32],
-) {
-    select_row_generic(costs, width, nd, sel, scratch, out, Level::Avx512)
-}
-
-/// [`select_row_generic`] compiled for AVX2.
-///
-/// # Safety
-/// The CPU must have AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,popcnt")]
-unsafe fn select_row_avx2(
-    costs: &[u16],
-    width: usize,
-    nd: usize,
-    sel: Selection,
-    scratch: &mut WtaScratch,
-    out: &mut [f32],
-) {
-    select_row_generic(costs, width, nd, sel, scratch, out, Level::Avx2)
+kernels::multiversion! {
+    /// [`select_row_generic`] compiled for the detected level, with the SIMD kernels inlined.
+    fn select_row_levels(
+        costs: &[u16],
+        width: usize,
+        nd: usize,
+        sel: Selection,
+        scratch: &mut WtaScratch,
+        out: &mut [f32],
+    ) => select_row_generic;
 }
 
 #[inline(always)]
@@ -198,23 +124,15 @@ fn select_row_generic(
     debug_assert!(nd < usize::from(NO_MATCH));
     let costs = &costs[..width * nd];
     if sel.lr_max_diff.is_some() {
-        // Right pixel xr = x - min - k collects the candidates (cost, k) of all left pixels x;
-        // indexed by q = width - 1 - xr, one left pixel's candidates are contiguous in k. Left
-        // pixels are visited in increasing x, so for equal costs the first (lowest k) stays.
-        let rc = &mut scratch.right_cost[..width];
-        let ri = &mut scratch.right_index[..width];
-        rc.fill(u16::MAX);
-        ri.fill(NO_MATCH);
-        for x in 0..width {
-            let ks = feasible_left(x, width, sel.range);
-            if ks.is_empty() {
-                continue;
-            }
-            let c = &costs[x * nd..(x + 1) * nd][ks.clone()];
-            let q0 = (width as i64 - 1 - x as i64 + sel.range.min as i64 + ks.start as i64) as usize;
-            let (rc, ri) = (&mut rc[q0..q0 + c.len()], &mut ri[q0..q0 + c.len()]);
-            simd::keep_smaller(level, c, ks.start as u16, rc, ri);
-        }
+        right_view_winners(
+            sel.range.min as i64,
+            |x| &costs[x * nd..(x + 1) * nd],
+            |x| feasible_left(x, width, sel.range),
+            |c, first, best, index| kernels::keep_smaller(level, c, first as u16, best, index),
+            u16::MAX,
+            &mut scratch.right_cost[..width],
+            &mut scratch.right_index[..width],
+        );
     }
 
     for (x, o) in out[..width].iter_mut().enumerate() {
@@ -224,17 +142,16 @@ fn select_row_generic(
             continue;
         }
         let c = &costs[x * nd..(x + 1) * nd];
-        let best = ks.start + simd::argmin(level, &c[ks.clone()]).1;
-        if ambiguous(c, ks.clone(), best, sel.uniqueness_ratio) {
+        let best = ks.start + kernels::argmin(level, &c[ks.clone()]).1;
+        if ambiguous(c, ks.clone(), best, sel.uniqueness_ratio, Ties::Unique) {
             *o = tagged_nan(PixelStatus::Ambiguous);
             continue;
         }
         let d_int = sel.range.min as i64 + best as i64;
         if let Some(max_diff) = sel.lr_max_diff {
-            let xr = x as i64 - d_int;
-            let kr = scratch.right_index[width - 1 - xr as usize];
-            if kr == NO_MATCH || (kr as f32 - best as f32).abs() > max_diff {
-                *o = lr_failure(kr != NO_MATCH && usize::from(kr) > best);
+            let right_index = &scratch.right_index[..width];
+            if let Err(occluded) = left_right_check(right_index, x as i64 - d_int, best as f32, 0, max_diff) {
+                *o = lr_failure(occluded);
                 continue;
             }
         }
@@ -256,6 +173,7 @@ mod fused {
     use std::arch::x86_64::*;
 
     use super::{feasible_left, tagged_nan, PixelStatus, Selection, WtaScratch, NO_MATCH};
+    use crate::winner::left_right_check;
     use crate::Subpixel;
 
     /// Registers of 32 lanes per window array: up to 8, i.e. 256 disparities.
@@ -389,7 +307,8 @@ mod fused {
                 }
                 let second = hmin_epu16(m);
                 second != u16::MAX
-                    && u64::from(best_cost) * u64::from(100 + sel.uniqueness_ratio) > u64::from(second) * 100
+                    && u64::from(best_cost) * (100 + u64::from(sel.uniqueness_ratio))
+                        > u64::from(second) * 100
             };
             let c = &costs[x * nd..(x + 1) * nd];
             if ambiguous {
@@ -427,15 +346,14 @@ mod fused {
                 continue;
             }
             let best = usize::from(left_best[x]);
-            let q = width as i64 - 1 - x as i64 + min + best as i64;
-            let kr = right_index[q as usize];
-            if kr == NO_MATCH || (kr as f32 - best as f32).abs() > max_diff {
-                *o = super::lr_failure(kr != NO_MATCH && usize::from(kr) > best);
+            let xr = x as i64 - min - best as i64;
+            if let Err(occluded) = left_right_check(right_index, xr, best as f32, 0, max_diff) {
+                *o = super::lr_failure(occluded);
             }
         }
     }
 
-    /// Adds [`super::subpixel_offset`] of each pixel's `around` costs to its integer disparity in
+    /// Adds [`crate::winner::subpixel_offset`] of each pixel's `around` costs to its integer disparity in
     /// `out`, 16 pixels per instruction and with the same floating-point operations in the same
     /// order (so the same roundings); NaN pixels (rejected) keep their tagged NaN. Pixels at the
     /// end of their feasible range carry their own cost as both neighbours, whose fit is 0.
@@ -527,7 +445,7 @@ pub(crate) fn select_row_reference(
         if sel.uniqueness_ratio > 0 {
             let second = ks.clone().filter(|k| k.abs_diff(best) > 1).map(|k| c[k]).min();
             if let Some(second) = second {
-                if u64::from(c[best]) * u64::from(100 + sel.uniqueness_ratio) > u64::from(second) * 100 {
+                if u64::from(c[best]) * (100 + u64::from(sel.uniqueness_ratio)) > u64::from(second) * 100 {
                     *o = tagged_nan(PixelStatus::Ambiguous);
                     continue;
                 }
@@ -591,7 +509,7 @@ mod tests {
             select_row(&costs, width, nd, sel, &mut scratch, &mut dispatched);
             runs.push(("select_row", dispatched));
             #[cfg(target_arch = "x86_64")]
-            if simd::supported_levels().contains(&Level::Avx512) && nd <= fused::MAX_DISPARITIES {
+            if kernels::supported_levels().contains(&Level::Avx512) && nd <= fused::MAX_DISPARITIES {
                 let mut f = vec![0f32; width];
                 // SAFETY: AVX-512 is supported (checked above); the lengths fit.
                 unsafe { fused::select_row_avx512(&costs, width, nd, sel, &mut scratch, &mut f) };

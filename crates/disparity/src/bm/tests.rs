@@ -1,5 +1,10 @@
 use super::*;
-use crate::DisparityRange;
+use crate::{DisparityRange, Subpixel};
+
+/// The shared fit on BM's `u32` window costs.
+fn subpixel_offset(method: Subpixel, cm: u32, c0: u32, cp: u32) -> f32 {
+    crate::winner::subpixel_offset(method, cm as f32, c0 as f32, cp as f32)
+}
 
 /// A pseudo-random texture (hash of the coordinates), shifted by `shift` px in the right view.
 fn shifted_pair(width: usize, height: usize, shift: usize) -> (GrayImage, GrayImage) {

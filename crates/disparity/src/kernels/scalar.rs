@@ -1,0 +1,251 @@
+//! The scalar kernels: the readable reference of every SIMD kernel (each SIMD version is
+//! proptested bit-for-bit against its function here) and the code every level falls back to.
+//! Imports only [`super::layout`].
+
+use super::layout::{
+    feasible, padded_lanes, padded_lanes_u8, AdRows, BtRow, PathIn, PathInU8, Samples, Window, BT_PAD,
+    JUNK_COST, PAD_U8,
+};
+
+/// The readable reference of [`super::path_step`].
+pub(crate) fn path_step_scalar<const N: usize>(
+    cost: &[u16],
+    p1: u16,
+    ins: [PathIn<'_>; N],
+    outs: [&mut [u16]; N],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> [u16; N] {
+    let mut mins = [u16::MAX; N];
+    let nd = sum.len();
+    for (i, out) in outs.into_iter().enumerate() {
+        let PathIn { prev, prev_min, p2 } = ins[i];
+        let jump = prev_min.saturating_add(p2);
+        let (prev, out) = (&prev[..cost.len() + 2], &mut out[1..=cost.len()]);
+        for (k, (&c, o)) in cost.iter().zip(out.iter_mut()).enumerate() {
+            let best =
+                prev[k + 1].min(prev[k].saturating_add(p1)).min(prev[k + 2].saturating_add(p1)).min(jump);
+            *o = c.saturating_add(best).wrapping_sub(prev_min);
+        }
+        mins[i] = out.iter().copied().fold(u16::MAX, u16::min);
+        for (s, &v) in sum.iter_mut().zip(&out[..nd]) {
+            *s = if i == 0 && !accumulate { v } else { s.wrapping_add(v) };
+        }
+    }
+    mins
+}
+
+/// The readable reference of [`super::path_step_u8`].
+pub(crate) fn path_step_u8_scalar<const N: usize>(
+    cost: &[u8],
+    p1: u8,
+    ins: [PathInU8<'_>; N],
+    outs: [&mut [u8]; N],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> [u8; N] {
+    let mut mins = [u8::MAX; N];
+    let nd = sum.len();
+    for (i, out) in outs.into_iter().enumerate() {
+        let PathIn { prev, prev_min, p2 } = ins[i];
+        let jump = prev_min.saturating_add(p2);
+        let (prev, out) = (&prev[..cost.len() + 2], &mut out[1..=cost.len()]);
+        for (k, (&c, o)) in cost.iter().zip(out.iter_mut()).enumerate() {
+            let best =
+                prev[k + 1].min(prev[k].saturating_add(p1)).min(prev[k + 2].saturating_add(p1)).min(jump);
+            *o = c.saturating_add(best.wrapping_sub(prev_min));
+        }
+        mins[i] = out.iter().copied().fold(u8::MAX, u8::min);
+        for (s, &v) in sum.iter_mut().zip(&out[..nd]) {
+            *s = if i == 0 && !accumulate { u16::from(v) } else { s.wrapping_add(u16::from(v)) };
+        }
+    }
+    mins
+}
+
+/// The readable reference of [`super::cost_row`].
+#[inline(always)]
+pub(crate) fn cost_row_scalar(
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u16],
+) {
+    let width = left.len();
+    let lanes = padded_lanes(nd);
+    for (x, costs) in out.chunks_exact_mut(lanes).enumerate() {
+        let l = left[x];
+        // Disparity index k has its right pixel at x - min - k: inside the row for k in lo..hi.
+        let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+        costs[..lo].fill(worst);
+        for (k, c) in costs[lo..hi].iter_mut().enumerate() {
+            let xr = (first - (lo + k) as i64) as usize;
+            *c = (l ^ right[xr]).count_ones() as u16;
+            if let Some(ad) = ad {
+                let il = BT_PAD + x;
+                let ir = BT_PAD + width - 1 - xr;
+                let at = |r: &BtRow, i: usize| (r.value[i], r.lo[i], r.hi[i]);
+                let term = u16::from(bt(at(ad.left, il), at(ad.right, ir))) * ad.weight;
+                *c += term.min(ad.cap);
+            }
+        }
+        costs[hi..nd].fill(worst);
+        costs[nd..].fill(JUNK_COST);
+    }
+}
+
+/// The readable reference of [`super::cost_row_u8`] (the loop of [`cost_row_scalar`] in 8 bits).
+#[inline(always)]
+pub(crate) fn cost_row_u8_scalar(
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u8],
+) {
+    let width = left.len();
+    let lanes = padded_lanes_u8(nd);
+    for (x, costs) in out.chunks_exact_mut(lanes).enumerate() {
+        let l = left[x];
+        let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+        costs[..lo].fill(worst as u8);
+        for (k, c) in costs[lo..hi].iter_mut().enumerate() {
+            let xr = (first - (lo + k) as i64) as usize;
+            let mut cost = (l ^ right[xr]).count_ones() as u16;
+            if let Some(ad) = ad {
+                let il = BT_PAD + x;
+                let ir = BT_PAD + width - 1 - xr;
+                let at = |r: &BtRow, i: usize| (r.value[i], r.lo[i], r.hi[i]);
+                cost += (u16::from(bt(at(ad.left, il), at(ad.right, ir))) * ad.weight).min(ad.cap);
+            }
+            *c = cost as u8;
+        }
+        costs[hi..nd].fill(worst as u8);
+        costs[nd..].fill(PAD_U8);
+    }
+}
+
+/// The readable reference of [`super::argmin`].
+pub(crate) fn argmin_scalar<T: Copy + Ord>(values: &[T]) -> (T, usize) {
+    let mut best = 0;
+    for (k, &v) in values.iter().enumerate() {
+        if v < values[best] {
+            best = k;
+        }
+    }
+    (values[best], best)
+}
+
+/// The readable reference of [`super::keep_smaller`].
+pub(crate) fn keep_smaller_scalar(costs: &[u16], first_index: u16, best: &mut [u16], index: &mut [u16]) {
+    for (j, ((&c, b), i)) in costs.iter().zip(best.iter_mut()).zip(index.iter_mut()).enumerate() {
+        if c < *b {
+            *b = c;
+            *i = first_index + j as u16;
+        }
+    }
+}
+
+/// The Birchfield–Tomasi dissimilarity of two pixels given as `(value, lo, hi)`.
+#[inline(always)]
+pub(crate) fn bt(l: (u8, u8, u8), r: (u8, u8, u8)) -> u8 {
+    let d_lr = l.0.saturating_sub(r.2).max(r.1.saturating_sub(l.0));
+    let d_rl = r.0.saturating_sub(l.2).max(l.1.saturating_sub(r.0));
+    d_lr.min(d_rl)
+}
+
+/// `s / 514` rounded half up: a sum of two 16-bit samples in 8-bit grey levels.
+#[inline]
+pub(crate) fn grey_of_pair_sum(s: u32) -> u8 {
+    ((s + 257) / 514) as u8
+}
+
+/// The BT inputs of `row` in order into `value`, `lo` and `hi` (each `row.len()` entries).
+/// The minimum of the doubled centre and the two doubled half-pixel interpolations is
+/// `c + min(a, b, c)` (and likewise the maximum), and rounding is monotonic, so each output is
+/// one rounding of one sum.
+#[inline(always)]
+pub(crate) fn bt_fill_in_order(row: &[u16], value: &mut [u8], lo: &mut [u8], hi: &mut [u8]) {
+    let width = row.len();
+    assert!(value.len() == width && lo.len() == width && hi.len() == width);
+    let pixel = |a: u16, c: u16, b: u16| {
+        let (min, max) = (c.min(a).min(b), c.max(a).max(b));
+        let c32 = u32::from(c);
+        (
+            grey_of_pair_sum(2 * c32),
+            grey_of_pair_sum(c32 + u32::from(min)),
+            grey_of_pair_sum(c32 + u32::from(max)),
+        )
+    };
+    let mut put = |x: usize, (v, l, h): (u8, u8, u8)| {
+        value[x] = v;
+        lo[x] = l;
+        hi[x] = h;
+    };
+    match width {
+        0 => return,
+        1 => return put(0, pixel(row[0], row[0], row[0])),
+        _ => {
+            put(0, pixel(row[0], row[0], row[1]));
+            put(width - 1, pixel(row[width - 2], row[width - 1], row[width - 1]));
+        }
+    }
+    let inner = 1..width - 1;
+    let (value, lo, hi) = (&mut value[inner.clone()], &mut lo[inner.clone()], &mut hi[inner]);
+    let (a, c, b) = (&row[..width - 2], &row[1..width - 1], &row[2..]);
+    for i in 0..width - 2 {
+        let (v, l, h) = pixel(a[i], c[i], b[i]);
+        value[i] = v;
+        lo[i] = l;
+        hi[i] = h;
+    }
+}
+
+/// Fills `padded` with the window rows around row `y` (clamped to the image), each extended by
+/// `window.width / 2` copies of its border pixels at both ends.
+#[inline(always)]
+pub(crate) fn pad_window_rows(image: Samples<'_>, window: Window, y: usize, padded: &mut [u16]) {
+    let (width, height) = image.size();
+    let (rx, ry) = (window.width / 2, window.height / 2);
+    let pw = width + 2 * rx;
+    for (dy, p) in padded.chunks_exact_mut(pw).enumerate() {
+        let src = image.row((y + dy).saturating_sub(ry).min(height - 1));
+        p[..rx].fill(src[0]);
+        p[rx..rx + width].copy_from_slice(src);
+        p[rx + width..].fill(src[width - 1]);
+    }
+}
+
+/// One row of the transform: one pass over the row per window position, so the comparisons of
+/// many pixels run side by side.
+#[inline(always)]
+pub(crate) fn census_row_scalar(
+    image: Samples<'_>,
+    window: Window,
+    y: usize,
+    padded: &mut [u16],
+    bits: &mut [u64],
+) {
+    pad_window_rows(image, window, y, padded);
+    let width = image.size().0;
+    let (rx, ry) = (window.width / 2, window.height / 2);
+    let pw = width + 2 * rx;
+    let centre = image.row(y);
+    bits.fill(0);
+    for (dy, p) in padded.chunks_exact(pw).enumerate() {
+        for dx in 0..window.width {
+            if dx == rx && dy == ry {
+                continue;
+            }
+            let neighbours = &p[dx..dx + width];
+            for ((b, &n), &c) in bits.iter_mut().zip(neighbours).zip(centre) {
+                *b = (*b << 1) | u64::from(n < c);
+            }
+        }
+    }
+}

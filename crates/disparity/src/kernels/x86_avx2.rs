@@ -1,0 +1,243 @@
+//! The AVX2 kernels (x86-64). Each is the AVX2 version of the function of the same stem in
+//! [`super::scalar`], selected by the dispatch in [`super`] only when the CPU has AVX2, and
+//! proptested against that scalar reference. Imports only [`super::layout`] and [`super::scalar`].
+
+use std::arch::x86_64::*;
+
+use super::layout::{feasible, padded_lanes, AdRows, PathIn, Samples, Window, BT_PAD};
+use super::scalar::{bt_fill_in_order, census_row_scalar, cost_row_scalar, cost_row_u8_scalar};
+
+/// Minimum of the 16 unsigned 16-bit lanes.
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) fn hmin_epu16_256(v: __m256i) -> u16 {
+    let m = _mm_min_epu16(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
+    _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u16
+}
+
+/// AVX2 [`super::path_step`]: 16 disparities per instruction.
+///
+/// # Safety
+/// The CPU must have AVX2; lengths as checked by [`super::path_step`].
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn path_step_avx2<const N: usize>(
+    cost: &[u16],
+    p1: u16,
+    ins: [PathIn<'_>; N],
+    outs: [&mut [u16]; N],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> [u16; N] {
+    let lanes = cost.len();
+    let nd = sum.len();
+    let p1v = _mm256_set1_epi16(p1 as i16);
+    let prev: [*const u16; N] = std::array::from_fn(|i| ins[i].prev.as_ptr());
+    let out: [*mut u16; N] = {
+        let mut outs = outs;
+        std::array::from_fn(|i| outs[i].as_mut_ptr())
+    };
+    let jump: [__m256i; N] =
+        std::array::from_fn(|i| _mm256_set1_epi16(ins[i].prev_min.saturating_add(ins[i].p2) as i16));
+    let pmin: [__m256i; N] = std::array::from_fn(|i| _mm256_set1_epi16(ins[i].prev_min as i16));
+    let mut mins = [_mm256_set1_epi16(-1); N];
+    let mut k = 0;
+    while k < lanes {
+        // SAFETY (pointer accesses below): `k + 16 <= lanes` (lanes is a multiple of 32),
+        // `prev`/`out` have `lanes + 2` entries, and `sum` is written only below `nd`.
+        let c = _mm256_loadu_si256(cost.as_ptr().add(k).cast());
+        let mut total = _mm256_setzero_si256();
+        for i in 0..N {
+            let v = path_vector!(U16_256, c, prev[i].add(k), out[i].add(k + 1), p1v, jump[i], pmin[i]);
+            mins[i] = _mm256_min_epu16(mins[i], v);
+            total = _mm256_add_epi16(total, v);
+        }
+        if k + 16 <= nd {
+            let dst = sum.as_mut_ptr().add(k);
+            if accumulate {
+                total = _mm256_add_epi16(total, _mm256_loadu_si256(dst.cast()));
+            }
+            _mm256_storeu_si256(dst.cast(), total);
+        } else if k < nd {
+            let mut tmp = [0u16; 16];
+            _mm256_storeu_si256(tmp.as_mut_ptr().cast(), total);
+            for (j, &t) in tmp[..nd - k].iter().enumerate() {
+                let d = &mut sum[k + j];
+                *d = if accumulate { d.wrapping_add(t) } else { t };
+            }
+        }
+        k += 16;
+    }
+    std::array::from_fn(|i| hmin_epu16_256(mins[i]))
+}
+
+/// AVX2 [`super::argmin`].
+///
+/// # Safety
+/// The CPU must have AVX2; `values` is not empty.
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn argmin_avx2(values: &[u16]) -> (u16, usize) {
+    let n = values.len();
+    let p = values.as_ptr();
+    let mut m = _mm256_set1_epi16(-1);
+    let mut k = 0;
+    while k + 16 <= n {
+        // SAFETY: `k + 16 <= n`.
+        m = _mm256_min_epu16(m, _mm256_loadu_si256(p.add(k).cast()));
+        k += 16;
+    }
+    let mut min = hmin_epu16_256(m);
+    for &v in &values[k..] {
+        min = min.min(v);
+    }
+    let mv = _mm256_set1_epi16(min as i16);
+    let mut k = 0;
+    while k + 16 <= n {
+        // SAFETY: `k + 16 <= n`.
+        let eq = _mm256_cmpeq_epi16(_mm256_loadu_si256(p.add(k).cast()), mv);
+        let bits = _mm256_movemask_epi8(eq) as u32;
+        if bits != 0 {
+            return (min, k + bits.trailing_zeros() as usize / 2);
+        }
+        k += 16;
+    }
+    (min, k + values[k..].iter().position(|&v| v == min).unwrap_or(0))
+}
+
+/// [`super::cost_row_u8`] for machines without the AVX-512 kernel: the scalar reference
+/// compiled with POPCNT.
+///
+/// # Safety
+/// The CPU must have AVX2 and POPCNT.
+#[target_feature(enable = "avx2,popcnt")]
+pub(super) unsafe fn cost_row_u8_avx2(
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u8],
+) {
+    cost_row_u8_scalar(left, right, min_disparity, nd, worst, ad, out)
+}
+
+/// Lane masks for [`add_ad_avx2`]: 16 entries read from `MASKS[16 - n..]` are set from lane
+/// `n` on; from `MASKS[32 - n..]` below lane `n`.
+static MASKS: [u16; 48] = {
+    let mut m = [0u16; 48];
+    let mut i = 16;
+    while i < 32 {
+        m[i] = u16::MAX;
+        i += 1;
+    }
+    m
+};
+
+/// Adds the AD term `min(weight · BT, cap)` of pixel `x` to its costs at `dst` for the feasible
+/// disparities `lo..hi` (as the AD part of [`super::scalar::cost_row_scalar`]), 16 disparities
+/// per step.
+///
+/// # Safety
+/// The CPU must have AVX2; `dst` points at pixel `x`'s `padded_lanes(nd)` entries, `lo..hi` are
+/// its feasible disparities and the BT rows are padded by [`BT_PAD`].
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn add_ad_avx2(
+    ad: &AdRows<'_>,
+    dst: *mut u16,
+    x: usize,
+    width: usize,
+    first: i64,
+    lo: usize,
+    hi: usize,
+) {
+    if lo >= hi {
+        return;
+    }
+    let il = BT_PAD + x;
+    let (lv, llo, lhi) = (
+        _mm_set1_epi8(ad.left.value[il] as i8),
+        _mm_set1_epi8(ad.left.lo[il] as i8),
+        _mm_set1_epi8(ad.left.hi[il] as i8),
+    );
+    let weight = _mm256_set1_epi16(ad.weight as i16);
+    let cap = _mm256_set1_epi16(ad.cap as i16);
+    let base = BT_PAD as i64 + width as i64 - 1 - first;
+    let mut k = lo & !15;
+    while k < hi {
+        let below = lo.saturating_sub(k);
+        let upto = (hi - k).min(16);
+        // SAFETY: `below <= 15` and `1 <= upto <= 16`: both 16-entry reads are inside `MASKS`.
+        let mask = _mm256_and_si256(
+            _mm256_loadu_si256(MASKS.as_ptr().add(16 - below).cast()),
+            _mm256_loadu_si256(MASKS.as_ptr().add(32 - upto).cast()),
+        );
+        // SAFETY: as in `add_ad_avx512`, the 16 bytes read at `i` are inside the padded rows.
+        let i = (base + k as i64) as usize;
+        let rv = _mm_loadu_si128(ad.right.value.as_ptr().add(i).cast());
+        let rlo = _mm_loadu_si128(ad.right.lo.as_ptr().add(i).cast());
+        let rhi = _mm_loadu_si128(ad.right.hi.as_ptr().add(i).cast());
+        let d_lr = _mm_max_epu8(_mm_subs_epu8(lv, rhi), _mm_subs_epu8(rlo, lv));
+        let d_rl = _mm_max_epu8(_mm_subs_epu8(rv, lhi), _mm_subs_epu8(llo, rv));
+        let bt = _mm256_cvtepu8_epi16(_mm_min_epu8(d_lr, d_rl));
+        let term = _mm256_min_epu16(_mm256_mullo_epi16(bt, weight), cap);
+        // SAFETY: `k` is a multiple of 16 below `hi <= lanes` (a multiple of 16), so entries
+        // `k..k + 16` are this pixel's; lanes outside `lo..hi` add 0.
+        let p = dst.add(k);
+        let c = _mm256_loadu_si256(p.cast());
+        _mm256_storeu_si256(p.cast(), _mm256_add_epi16(c, _mm256_and_si256(term, mask)));
+        k += 16;
+    }
+}
+
+/// [`super::cost_row`] for AVX2 machines: the scalar reference compiled with POPCNT.
+///
+/// # Safety
+/// The CPU must have AVX2 and POPCNT.
+#[target_feature(enable = "avx2,popcnt")]
+pub(super) unsafe fn cost_row_avx2(
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u16],
+) {
+    cost_row_scalar(left, right, min_disparity, nd, worst, None, out);
+    if let Some(ad) = &ad {
+        let (width, lanes) = (left.len(), padded_lanes(nd));
+        for x in 0..width {
+            let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+            // SAFETY: `lo..hi` are the feasible disparities of `x`, whose `lanes` entries
+            // start at `x * lanes` (`out.len() == width * lanes` was checked).
+            add_ad_avx2(ad, out.as_mut_ptr().add(x * lanes), x, width, first, lo, hi);
+        }
+    }
+}
+
+/// [`bt_fill_in_order`] compiled for AVX2 (eight 32-bit lanes for the divisions by 514).
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn bt_fill_avx2(row: &[u16], value: &mut [u8], lo: &mut [u8], hi: &mut [u8]) {
+    bt_fill_in_order(row, value, lo, hi)
+}
+
+/// [`census_row_scalar`] compiled for AVX2 (auto-vectorised over pixels).
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn census_row_avx2(
+    image: Samples<'_>,
+    window: Window,
+    y: usize,
+    padded: &mut [u16],
+    bits: &mut [u64],
+) {
+    census_row_scalar(image, window, y, padded, bits)
+}
