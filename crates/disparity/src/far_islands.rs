@@ -10,6 +10,7 @@
 //! [`crate::DENSE_SPECKLE_SIZE`] pixels the matcher cannot tell one from a wrong match, so they are
 //! rejected, whatever their position in the image.
 
+use crate::speckle::flood_region;
 use crate::status::{tagged_nan, PixelStatus};
 use crate::{DisparityMap, DisparityRange};
 
@@ -58,38 +59,15 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
         }
         // The whole region is visited (and marked) even when it turns out too large or not far
         // everywhere, so that no later start sees only a part of it.
-        seen[start] = true;
-        stack.push(start as u32);
         island.clear();
         let (mut size, mut all_far) = (0usize, true);
-        while let Some(p) = stack.pop() {
-            let p = p as usize;
-            let v = d[p];
+        flood_region(d, w, start, MAX_STEP, &mut seen, &mut stack, |p, v| {
             size += 1;
             all_far &= far(p, v);
             if all_far && size < MAX_ISLAND {
                 island.push(p as u32);
             }
-            let (x, y) = (p % w, p / w);
-            let mut visit = |q: usize| {
-                if !seen[q] && !d[q].is_nan() && (d[q] - v).abs() <= MAX_STEP {
-                    seen[q] = true;
-                    stack.push(q as u32);
-                }
-            };
-            if x > 0 {
-                visit(p - 1);
-            }
-            if x + 1 < w {
-                visit(p + 1);
-            }
-            if y > 0 {
-                visit(p - w);
-            }
-            if y + 1 < h {
-                visit(p + w);
-            }
-        }
+        });
         if all_far && size < MAX_ISLAND {
             for &p in &island {
                 d[p as usize] = invalid;

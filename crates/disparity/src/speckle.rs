@@ -12,47 +12,23 @@ pub fn remove_speckles(disparity: &mut DisparityMap, max_size: usize, max_diff: 
     if max_size <= 1 {
         return 0;
     }
-    let (w, h) = disparity.size();
+    let (w, _) = disparity.size();
     let d = disparity.as_mut_slice();
-    const UNSEEN: u32 = u32::MAX;
-    let mut label = vec![UNSEEN; w * h];
+    let mut seen = vec![false; d.len()];
     let mut stack: Vec<u32> = Vec::new();
     let mut region: Vec<u32> = Vec::new();
     let mut removed = 0;
-    for start in 0..w * h {
-        if label[start] != UNSEEN || d[start].is_nan() {
+    for start in 0..d.len() {
+        if seen[start] || d[start].is_nan() {
             continue;
         }
-        label[start] = start as u32;
-        stack.push(start as u32);
         region.clear();
         // Only the first `max_size` members are remembered: a larger region is kept anyway.
-        while let Some(p) = stack.pop() {
-            let p = p as usize;
+        flood_region(d, w, start, max_diff, &mut seen, &mut stack, |p, _| {
             if region.len() < max_size {
                 region.push(p as u32);
             }
-            let v = d[p];
-            let (x, y) = (p % w, p / w);
-            let mut visit = |q: usize| {
-                if label[q] == UNSEEN && !d[q].is_nan() && (d[q] - v).abs() <= max_diff {
-                    label[q] = start as u32;
-                    stack.push(q as u32);
-                }
-            };
-            if x > 0 {
-                visit(p - 1);
-            }
-            if x + 1 < w {
-                visit(p + 1);
-            }
-            if y > 0 {
-                visit(p - w);
-            }
-            if y + 1 < h {
-                visit(p + w);
-            }
-        }
+        });
         if region.len() < max_size {
             for &p in &region {
                 d[p as usize] = tagged_nan(PixelStatus::Speckle);
@@ -61,6 +37,48 @@ pub fn remove_speckles(disparity: &mut DisparityMap, max_size: usize, max_diff: 
         }
     }
     removed
+}
+
+/// Visits the 4-connected region of valid pixels around `start` in the row-major map `d` (`w`
+/// wide) whose neighbours differ by at most `max_diff`, marking each in `seen` and calling `each`
+/// with its index and disparity. The whole region is visited, so no later start sees a part of
+/// it. `stack` is scratch space, reused between calls.
+pub(crate) fn flood_region(
+    d: &[f32],
+    w: usize,
+    start: usize,
+    max_diff: f32,
+    seen: &mut [bool],
+    stack: &mut Vec<u32>,
+    mut each: impl FnMut(usize, f32),
+) {
+    let h = d.len() / w;
+    seen[start] = true;
+    stack.push(start as u32);
+    while let Some(p) = stack.pop() {
+        let p = p as usize;
+        let v = d[p];
+        each(p, v);
+        let (x, y) = (p % w, p / w);
+        let mut visit = |q: usize| {
+            if !seen[q] && !d[q].is_nan() && (d[q] - v).abs() <= max_diff {
+                seen[q] = true;
+                stack.push(q as u32);
+            }
+        };
+        if x > 0 {
+            visit(p - 1);
+        }
+        if x + 1 < w {
+            visit(p + 1);
+        }
+        if y > 0 {
+            visit(p - w);
+        }
+        if y + 1 < h {
+            visit(p + w);
+        }
+    }
 }
 
 #[cfg(test)]
