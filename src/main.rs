@@ -16,6 +16,7 @@ mod eval_folder;
 mod info;
 mod limits;
 mod pair;
+mod rectify_cmd;
 mod report;
 mod writers;
 
@@ -72,6 +73,7 @@ fn run() -> anyhow::Result<ExitCode> {
             let config = degrade_cmd::DegradeConfig::from_args(args)?;
             degrade_cmd::run(&config, &mut stdout)?;
         }
+        Some(Command::Rectify(args)) => rectify_cmd::run(&args, &mut stdout)?,
         Some(Command::EvalFolder(args)) => eval_folder::run(&args, &mut stdout)?,
         Some(Command::Eval(args)) => {
             let config = EvalConfig::from_args(args)?;

@@ -52,6 +52,11 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
         }
     }
 
+    // A raw pair (--calib with an OpenCV/ROS calibration) is rectified before matching.
+    let (left, right) = match &config.rectify {
+        Some(rectifier) => crate::rectify_cmd::rectify_gray(rectifier, &left, &right),
+        None => (left, right),
+    };
     let result = plan.run_gray(&left, right).map_err(|err| matching_error(config, &plan, err))?;
     drop(left);
     warn_about_rectification(config, &result.rectification);

@@ -59,6 +59,10 @@ pub fn write_outputs<'a>(
     if let (Some(path), Some(setup)) = (&config.points, &config.rig) {
         let colour = stereo_io::load_rgb8_limited(&config.left, config.limits.max_pixels)
             .context("cannot read the left image's colours")?;
+        let colour = match &config.rectify {
+            Some(rectifier) => rectifier.left.remap(&colour),
+            None => colour,
+        };
         if colour.size() != disparity.size() {
             bail!("{} changed while it was being processed", config.left.display());
         }

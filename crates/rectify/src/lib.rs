@@ -41,12 +41,14 @@
 //! ```
 
 mod alignment;
+mod cache;
 mod calib_file;
 mod remap;
 mod stereo;
 mod tree;
 
 pub use alignment::{compensate, estimate_alignment, Alignment, AlignmentVerdict};
+pub use cache::RectifierCache;
 pub use calib_file::{read_calibration, CalibError, CalibFormat, CalibrationFile, GivenRectification, StereoCalibration};
 pub use remap::{RectifyMap, Sample};
 pub use stereo::{
