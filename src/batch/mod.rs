@@ -160,6 +160,11 @@ pub fn run(config: &BatchConfig, out: &mut impl Write) -> Result<ExitCode> {
             wall.as_secs_f64(),
             if wall > Duration::ZERO { processed as f64 / wall.as_secs_f64() } else { 0.0 }
         )?;
+        if let Some(raw) = &config.rig.raw {
+            let n = raw.cache.computed();
+            let times = if n == 1 { "once".to_string() } else { format!("{n} times (once per image size)") };
+            writeln!(out, "rectification ({}): maps computed {times}", raw.path.display())?;
+        }
     }
     report_written(&summary, &written, out)
 }
