@@ -20,7 +20,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Err("a Middlebury calib.txt: already rectified".into());
     };
     let t = std::time::Instant::now();
-    let rectifier = Rectifier::new(&calibration, size, alpha).map_err(|m| format!("{}: {m}", path.display()))?;
+    let rectifier =
+        Rectifier::new(&calibration, size, alpha).map_err(|m| format!("{}: {m}", path.display()))?;
     eprintln!("maps in {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
     print!("{}", rectifier.opencv_yaml());
     eprintln!("{:?}", rectifier.rig);

@@ -162,7 +162,10 @@ fn matrix(path: &Path, node: &Node, key: &str, rows: usize, cols: usize) -> Resu
     };
     let values = data.numbers().map_err(|m| err(path, format!("{key}: {m}")))?;
     if values.len() != rows * cols {
-        return Err(err(path, format!("{key}: {} numbers, want {rows}x{cols} = {}", values.len(), rows * cols)));
+        return Err(err(
+            path,
+            format!("{key}: {} numbers, want {rows}x{cols} = {}", values.len(), rows * cols),
+        ));
     }
     Ok(values)
 }
@@ -177,7 +180,10 @@ fn camera_matrix(path: &Path, node: &Node, key: &str) -> Result<Matrix3<f64>, Ca
         && k[(2, 1)] == 0.0
         && (k[(2, 2)] - 1.0).abs() < 1e-9;
     if !ok {
-        return Err(err(path, format!("{key}: not a camera matrix [fx 0 cx; 0 fy cy; 0 0 1] with fx, fy > 0")));
+        return Err(err(
+            path,
+            format!("{key}: not a camera matrix [fx 0 cx; 0 fy cy; 0 0 1] with fx, fy > 0"),
+        ));
     }
     Ok(k)
 }
@@ -206,7 +212,12 @@ fn rotation(path: &Path, node: &Node, key: &str) -> Result<Matrix3<f64>, CalibEr
     let r = match values.len() {
         9 => Matrix3::from_row_slice(&values),
         3 => rodrigues(&Vector3::new(values[0], values[1], values[2])),
-        n => return Err(err(path, format!("{key}: {n} numbers, want a 3x3 rotation matrix or a rotation vector"))),
+        n => {
+            return Err(err(
+                path,
+                format!("{key}: {n} numbers, want a 3x3 rotation matrix or a rotation vector"),
+            ))
+        }
     };
     let off = (r * r.transpose() - Matrix3::identity()).abs().max();
     if off > 1e-3 || (r.determinant() - 1.0).abs() > 1e-3 {
@@ -243,7 +254,13 @@ fn size_from(path: &Path, node: &Node) -> Result<Option<(usize, usize)>, CalibEr
 /// than a 5 m one), otherwise millimetres.
 fn unit_for(norm: f64) -> (f64, String) {
     if norm < 5.0 {
-        (1000.0, format!("baseline {norm:.6} taken as metres ({:.3} mm); give --baseline in mm to override", norm * 1000.0))
+        (
+            1000.0,
+            format!(
+                "baseline {norm:.6} taken as metres ({:.3} mm); give --baseline in mm to override",
+                norm * 1000.0
+            ),
+        )
     } else {
         (1.0, format!("baseline {norm:.3} taken as millimetres; give --baseline in mm to override"))
     }
@@ -339,7 +356,10 @@ fn read_ros_camera(path: &Path, node: &Node) -> Result<RosCamera, CalibError> {
     match model {
         "plumb_bob" | "rational_polynomial" | "" => {}
         "equidistant" | "fisheye" => {
-            return Err(err(path, "distortion_model: equidistant (fisheye) is not supported yet; plumb_bob is"))
+            return Err(err(
+                path,
+                "distortion_model: equidistant (fisheye) is not supported yet; plumb_bob is",
+            ))
         }
         other => return Err(err(path, format!("distortion_model: {other} is not supported (plumb_bob is)"))),
     }
@@ -357,7 +377,14 @@ fn read_ros_camera(path: &Path, node: &Node) -> Result<RosCamera, CalibError> {
 /// The sibling file with `left` ↔ `right` swapped in its name (any case).
 fn sibling(path: &Path) -> Option<PathBuf> {
     let name = path.file_name()?.to_str()?;
-    for (from, to) in [("left", "right"), ("right", "left"), ("Left", "Right"), ("Right", "Left"), ("LEFT", "RIGHT"), ("RIGHT", "LEFT")] {
+    for (from, to) in [
+        ("left", "right"),
+        ("right", "left"),
+        ("Left", "Right"),
+        ("Right", "Left"),
+        ("LEFT", "RIGHT"),
+        ("RIGHT", "LEFT"),
+    ] {
         if let Some(i) = name.rfind(from) {
             let other = format!("{}{}{}", &name[..i], to, &name[i + from.len()..]);
             return Some(path.with_file_name(other));
@@ -424,7 +451,10 @@ fn ros_stereo(mut cameras: Vec<(PathBuf, RosCamera)>) -> Result<StereoCalibratio
         ));
     }
     if tx(&left) != 0.0 {
-        return Err(err(&left_path, "projection_matrix: P[0][3] is not 0 in either file: which is the left camera?"));
+        return Err(err(
+            &left_path,
+            "projection_matrix: P[0][3] is not 0 in either file: which is the left camera?",
+        ));
     }
     if left.size != right.size {
         return Err(err(
@@ -444,7 +474,10 @@ fn ros_stereo(mut cameras: Vec<(PathBuf, RosCamera)>) -> Result<StereoCalibratio
     {
         return Err(err(
             &right_path,
-            format!("projection_matrix: focal length or cy differs from {}'s (not one rectified rig)", left_path.display()),
+            format!(
+                "projection_matrix: focal length or cy differs from {}'s (not one rectified rig)",
+                left_path.display()
+            ),
         ));
     }
     if right.p[(1, 3)] != 0.0 {

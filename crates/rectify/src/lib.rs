@@ -49,7 +49,9 @@ mod tree;
 
 pub use alignment::{compensate, estimate_alignment, Alignment, AlignmentVerdict};
 pub use cache::RectifierCache;
-pub use calib_file::{read_calibration, CalibError, CalibFormat, CalibrationFile, GivenRectification, StereoCalibration};
+pub use calib_file::{
+    read_calibration, CalibError, CalibFormat, CalibrationFile, GivenRectification, StereoCalibration,
+};
 pub use remap::{RectifyMap, Sample};
 pub use stereo::{
     rodrigues, rotation_vector, stereo_rectify, undistort_rectify_map, Camera, RectifiedRig, Rectifier,

@@ -103,14 +103,16 @@ pub trait Sample: Copy + Default + Send + Sync {
 impl Sample for u8 {
     #[inline]
     fn blend(p: [u8; 4], w: [u32; 4]) -> u8 {
-        ((p[0] as u32 * w[0] + p[1] as u32 * w[1] + p[2] as u32 * w[2] + p[3] as u32 * w[3] + 512) >> 10) as u8
+        ((p[0] as u32 * w[0] + p[1] as u32 * w[1] + p[2] as u32 * w[2] + p[3] as u32 * w[3] + 512) >> 10)
+            as u8
     }
 }
 
 impl Sample for u16 {
     #[inline]
     fn blend(p: [u16; 4], w: [u32; 4]) -> u16 {
-        ((p[0] as u32 * w[0] + p[1] as u32 * w[1] + p[2] as u32 * w[2] + p[3] as u32 * w[3] + 512) >> 10) as u16
+        ((p[0] as u32 * w[0] + p[1] as u32 * w[1] + p[2] as u32 * w[2] + p[3] as u32 * w[3] + 512) >> 10)
+            as u16
     }
 }
 

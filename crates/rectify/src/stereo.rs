@@ -140,8 +140,10 @@ fn undistort_rectangles(
 ) -> ([f64; 4], [f64; 4]) {
     const N: usize = 9;
     let rr = p.fixed_view::<3, 3>(0, 0) * r;
-    let (mut ix0, mut ix1, mut iy0, mut iy1) = (-f64::from(f32::MAX), f64::from(f32::MAX), -f64::from(f32::MAX), f64::from(f32::MAX));
-    let (mut ox0, mut ox1, mut oy0, mut oy1) = (f64::from(f32::MAX), -f64::from(f32::MAX), f64::from(f32::MAX), -f64::from(f32::MAX));
+    let (mut ix0, mut ix1, mut iy0, mut iy1) =
+        (-f64::from(f32::MAX), f64::from(f32::MAX), -f64::from(f32::MAX), f64::from(f32::MAX));
+    let (mut ox0, mut ox1, mut oy0, mut oy1) =
+        (f64::from(f32::MAX), -f64::from(f32::MAX), f64::from(f32::MAX), -f64::from(f32::MAX));
     for y in 0..N {
         for x in 0..N {
             let u = x as f64 * (size.0 as f64 - 1.0) / (N - 1) as f64;
@@ -362,8 +364,10 @@ impl Rectifier {
             (Some((r, t)), _) => {
                 let rect = stereo_rectify(&calibration.left, &calibration.right, r, t, size, Some(alpha));
                 if !rect.horizontal {
-                    return Err("the cameras are one above the other (|Ty| > |Tx|): vertical rigs are not supported"
-                        .into());
+                    return Err(
+                        "the cameras are one above the other (|Ty| > |Tx|): vertical rigs are not supported"
+                            .into(),
+                    );
                 }
                 (rect.r1, rect.r2, rect.p1, rect.p2, true)
             }
@@ -414,10 +418,15 @@ impl Rectifier {
     pub fn opencv_yaml(&self) -> String {
         let mat = |name: &str, rows: usize, cols: usize, data: Vec<f64>| {
             let values: Vec<String> = data.iter().map(|v| format!("{v:.17e}")).collect();
-            format!("{name}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {} ]\n", values.join(", "))
+            format!(
+                "{name}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {} ]\n",
+                values.join(", ")
+            )
         };
-        let rows3 = |m: &Matrix3<f64>| (0..3).flat_map(|r| (0..3).map(move |c| m[(r, c)])).collect::<Vec<_>>();
-        let rows34 = |m: &Matrix3x4<f64>| (0..3).flat_map(|r| (0..4).map(move |c| m[(r, c)])).collect::<Vec<_>>();
+        let rows3 =
+            |m: &Matrix3<f64>| (0..3).flat_map(|r| (0..3).map(move |c| m[(r, c)])).collect::<Vec<_>>();
+        let rows34 =
+            |m: &Matrix3x4<f64>| (0..3).flat_map(|r| (0..4).map(move |c| m[(r, c)])).collect::<Vec<_>>();
         format!(
             "%YAML:1.0\n---\nimageSize: [ {}, {} ]\n{}{}{}{}",
             self.size.0,

@@ -246,7 +246,9 @@ fn parse_block_yaml(text: &str) -> Result<Node, String> {
     let mut lines = Vec::new();
     for (i, raw) in text.lines().enumerate() {
         let trimmed_start = raw.trim_start();
-        if trimmed_start.starts_with('%') || trimmed_start.starts_with("---") || trimmed_start.starts_with("...")
+        if trimmed_start.starts_with('%')
+            || trimmed_start.starts_with("---")
+            || trimmed_start.starts_with("...")
         {
             continue;
         }

@@ -7,7 +7,8 @@ use std::sync::Arc;
 use nalgebra::{Matrix3, Vector3};
 use stereo_image::Image;
 use stereo_rectify::{
-    read_calibration, rodrigues, CalibFormat, CalibrationFile, Camera, Rectifier, RectifierCache, StereoCalibration,
+    read_calibration, rodrigues, CalibFormat, CalibrationFile, Camera, Rectifier, RectifierCache,
+    StereoCalibration,
 };
 
 /// As `cv2.FileStorage` (OpenCV 5) writes a `stereoCalibrate` result.
@@ -165,10 +166,17 @@ fn ros_camera_info_pair() {
     // Inconsistent pairs.
     write(dir.path(), "right.yaml", &ros_file("right", 0.0));
     assert!(read_calibration(&left).unwrap_err().to_string().contains("P[0][3] is 0 in both files"));
-    write(dir.path(), "right.yaml", &ros_file("right", -57.6).replace("image_width: 640", "image_width: 320"));
+    write(
+        dir.path(),
+        "right.yaml",
+        &ros_file("right", -57.6).replace("image_width: 640", "image_width: 320"),
+    );
     assert!(read_calibration(&left).unwrap_err().to_string().contains("differ from"));
     write(dir.path(), "right.yaml", &ros_file("right", -57.6).replace("plumb_bob", "equidistant"));
-    assert!(read_calibration(&left).unwrap_err().to_string().contains("equidistant (fisheye) is not supported"));
+    assert!(read_calibration(&left)
+        .unwrap_err()
+        .to_string()
+        .contains("equidistant (fisheye) is not supported"));
 }
 
 /// A smooth texture with detail at several scales.
