@@ -82,7 +82,7 @@ impl RigFlags {
     pub fn from_args(args: &RigArgs) -> anyhow::Result<Self> {
         let mut flags = RigFlags::check(args)?;
         if let Some(path) = &args.calib {
-            match crate::rectify_cmd::read_calib_flag(path, args.alpha, args.baseline.is_some())? {
+            match crate::rectify_cmd::read_calib_flag(path, args.alpha)? {
                 crate::rectify_cmd::CalibFlag::Middlebury(calib) => flags.calib = Some(calib),
                 crate::rectify_cmd::CalibFlag::Raw(raw) => flags.raw = Some(raw),
             }
@@ -159,7 +159,12 @@ impl RigFlags {
             (None, Some(calib), Some(path)) => calib.baseline_mm.map(|mm| (mm, BaselineSource::Calib(path))),
             _ => None,
         };
-        checks::rig_warnings(baseline, self.pixel_um)
+        let mut warnings = checks::rig_warnings(baseline, self.pixel_um);
+        // The unit of an OpenCV calibration's T is a guess unless --baseline overrides it.
+        if let (Some(raw), None) = (&self.raw, self.baseline_mm) {
+            warnings.extend(raw.unit_warning());
+        }
+        warnings
     }
 
     /// Whether any flag that describes the rig was given.

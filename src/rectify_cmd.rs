@@ -56,18 +56,14 @@ pub enum CalibFlag {
     Raw(Arc<RawCalib>),
 }
 
-/// Reads a `--calib` file of any supported format. `quiet_units`: the baseline unit note is
-/// not printed (--baseline was given).
-pub fn read_calib_flag(path: &Path, alpha: f64, quiet_units: bool) -> Result<CalibFlag> {
+/// Reads a `--calib` file of any supported format.
+pub fn read_calib_flag(path: &Path, alpha: f64) -> Result<CalibFlag> {
     if !(0.0..=1.0).contains(&alpha) {
         return Err(crate::config::UsageError(format!("invalid --alpha {alpha} (must be in 0..1)")).into());
     }
     match stereo_rectify::read_calibration(path)? {
         CalibrationFile::Middlebury(calib) => Ok(CalibFlag::Middlebury(calib)),
         CalibrationFile::Stereo(calibration) => {
-            if !quiet_units && calibration.format != CalibFormat::RosCameraInfo {
-                eprintln!("stereo-depth: note: {}: {}", path.display(), calibration.unit_note);
-            }
             let cache = RectifierCache::new(Arc::new(*calibration), alpha);
             Ok(CalibFlag::Raw(Arc::new(RawCalib { path: path.to_path_buf(), cache })))
         }
@@ -75,16 +71,22 @@ pub fn read_calib_flag(path: &Path, alpha: f64, quiet_units: bool) -> Result<Cal
 }
 
 impl RawCalib {
+    /// How the unit of an OpenCV file's translation was decided (ROS files are in metres), for a
+    /// warning when --baseline does not override it.
+    pub fn unit_warning(&self) -> Option<String> {
+        let calibration = self.cache.calibration();
+        (calibration.format != CalibFormat::RosCameraInfo)
+            .then(|| format!("{}: {}", self.path.display(), calibration.unit_note))
+    }
+
     /// The rectifier for images of `size` (computed once per size).
     pub fn rectifier(&self, size: (usize, usize)) -> Result<Arc<Rectifier>> {
         self.cache.get(size).map_err(|m| anyhow!("{}: {m}", self.path.display()))
     }
 
-    /// The image size: the calibration's, else `left`'s header.
+    /// The size of the pair (from `left`'s header; the rectifier checks it against the
+    /// calibration's).
     pub fn size_for(&self, left: &Path) -> Result<(usize, usize)> {
-        if let Some(size) = self.cache.calibration().image_size {
-            return Ok(size);
-        }
         let header = stereo_io::probe_image(left).context("cannot read the left image")?;
         Ok((header.width, header.height))
     }
@@ -139,7 +141,7 @@ fn rectify_files<P: Sample>(
 }
 
 pub fn run(args: &RectifyArgs, out: &mut impl Write) -> Result<()> {
-    let CalibFlag::Raw(raw) = read_calib_flag(&args.calib, args.alpha, false)? else {
+    let CalibFlag::Raw(raw) = read_calib_flag(&args.calib, args.alpha)? else {
         bail!(
             "{}: a Middlebury calib.txt describes an already rectified pair: nothing to rectify",
             args.calib.display()
@@ -184,6 +186,7 @@ pub fn run(args: &RectifyArgs, out: &mut impl Write) -> Result<()> {
             stereo_io::write_pfm(&args.out.join(format!("{name}_map_y.pfm")), &y)?;
         }
     }
+    crate::checks::print_warnings(&raw.unit_warning().into_iter().collect::<Vec<_>>());
     if !args.quiet {
         let cal = raw.cache.calibration();
         let rig = &rectifier.rig;

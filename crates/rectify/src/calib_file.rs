@@ -132,9 +132,22 @@ fn read_text(path: &Path) -> Result<String, CalibError> {
     String::from_utf8(bytes).map_err(|_| err(path, "not a calibration file (not UTF-8 text)"))
 }
 
-/// Middlebury files are `key=value` lines with a `cam0=` line.
+/// Middlebury files are `key=value` lines: a `cam0=` line, or a first line `key=...` (no `:`
+/// before the `=`, so YAML/JSON/XML are not taken for one).
 fn looks_like_middlebury(text: &str) -> bool {
-    text.lines().any(|l| l.trim_start().starts_with("cam0=") || l.trim_start().starts_with("cam0 ="))
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    if text.lines().any(|l| l.trim_start().starts_with("cam0=") || l.trim_start().starts_with("cam0 =")) {
+        return true;
+    }
+    let Some(first) = text.lines().map(str::trim).find(|l| !l.is_empty() && !l.starts_with('#')) else {
+        return false;
+    };
+    match first.split_once('=') {
+        Some((key, _)) => {
+            !key.is_empty() && key.trim().chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+        }
+        None => false,
+    }
 }
 
 /// The `data` of an `!!opencv-matrix` mapping, or the node itself.
@@ -257,12 +270,19 @@ fn unit_for(norm: f64) -> (f64, String) {
         (
             1000.0,
             format!(
-                "baseline {norm:.6} taken as metres ({:.3} mm); give --baseline in mm to override",
+                "T (length {norm:.6}) has no unit in the file: taken as metres, baseline {:.3} mm; \
+                 give --baseline MM to override",
                 norm * 1000.0
             ),
         )
     } else {
-        (1.0, format!("baseline {norm:.3} taken as millimetres; give --baseline in mm to override"))
+        (
+            1.0,
+            format!(
+                "T (length {norm:.3}) has no unit in the file: taken as millimetres; give --baseline MM \
+                 to override"
+            ),
+        )
     }
 }
 
