@@ -110,9 +110,19 @@ pub fn read_calibration(path: &Path) -> Result<CalibrationFile, CalibError> {
             .map(CalibrationFile::Middlebury)
             .map_err(|m| err(path, format!("invalid Middlebury calib.txt: {m}")));
     }
-    let node = tree::parse(&text).map_err(|m| {
-        err(path, format!("not a calibration file this program reads (OpenCV YAML/XML, JSON, ROS camera_info, Middlebury calib.txt): {m}"))
-    })?;
+    let unknown = |detail: &str| {
+        err(
+            path,
+            format!(
+                "not a calibration file: neither Middlebury key=value lines (cam0=[f 0 cx; 0 f cy; 0 0 1]) nor \
+                 OpenCV/ROS YAML, XML or JSON ({detail})"
+            ),
+        )
+    };
+    if text.trim().is_empty() {
+        return Err(unknown("empty file"));
+    }
+    let node = tree::parse(&text).map_err(|m| unknown(&m))?;
     if node.get("camera_matrix").is_some() {
         return read_ros_pair(path, node).map(|c| CalibrationFile::Stereo(Box::new(c)));
     }
@@ -449,7 +459,11 @@ fn read_ros_folder(dir: &Path) -> Result<StereoCalibration, CalibError> {
     if cameras.len() != 2 {
         return Err(err(
             dir,
-            format!("is a folder: want two ROS camera_info YAML files in it, found {}", cameras.len()),
+            format!(
+                "is a directory: want a calibration file, or a folder holding the two ROS camera_info \
+                 YAML files (found {})",
+                cameras.len()
+            ),
         ));
     }
     ros_stereo(cameras)

@@ -122,7 +122,7 @@ fn errors_name_the_file_and_the_key() {
         ("bad_r.yaml", OPENCV_YAML.replace("0.99975501294389313,", "1.5,"), "R: not a rotation"),
         ("no_t.yaml", OPENCV_YAML.replace("T:", "X:"), "R without T"),
         ("word.yaml", OPENCV_YAML.replace("-0.1201", "abc"), "T: \"abc\" is not a number"),
-        ("random.txt", "hello world\n".to_string(), "expected 'key: value'"),
+        ("random.txt", "hello world\n".to_string(), "neither Middlebury key=value lines"),
     ];
     for (name, text, want) in cases {
         let path = write(dir.path(), name, &text);
