@@ -212,10 +212,49 @@ def main():
                     check(map_err < 0.01, f"{fmt} alpha {alpha}: maps differ by {map_err:g} px")
                     check(img_err < 1.0, f"{fmt} alpha {alpha}: images differ by {img_err:g} grey levels")
 
+        # Equidistant (fisheye) lenses in ROS files (their own R and P, from cv2.fisheye.stereoRectify):
+        # maps against cv2.fisheye.initUndistortRectifyMap.
+        size = (grey.shape[1], grey.shape[0])
+        f = 0.45 * size[0]
+        Kf = [np.array([[f * s, 0, size[0] / 2 + dx], [0, f * s, size[1] / 2 + dy], [0, 0, 1.0]])
+              for s, dx, dy in [(1.0, 3.0, -2.0), (1.01, -4.0, 3.0)]]
+        Df = [np.array([[0.05], [-0.01], [0.003], [-0.0005]]), np.array([[0.045], [-0.008], [0.002], [-0.0004]])]
+        Rf = cv2.Rodrigues(np.array([0.01, -0.02, 0.005]))[0]
+        Tf = np.array([[-0.1], [0.002], [-0.001]])
+        R1f, R2f, P1f, P2f, _ = cv2.fisheye.stereoRectify(Kf[0], Df[0], Kf[1], Df[1], size, Rf, Tf,
+                                                        flags=cv2.CALIB_ZERO_DISPARITY, balance=0.0)
+        folder = os.path.join(tmp, "fisheye")
+        os.makedirs(folder)
+        for side, K, D, Rk, P in [("left", Kf[0], Df[0], R1f, P1f), ("right", Kf[1], Df[1], R2f, P2f)]:
+            with open(os.path.join(folder, f"{side}.yaml"), "w") as fh:
+                fh.write(f"image_width: {size[0]}\nimage_height: {size[1]}\ndistortion_model: equidistant\n")
+                for key, m in [("camera_matrix", K), ("distortion_coefficients", D.reshape(1, -1)),
+                               ("rectification_matrix", Rk), ("projection_matrix", P)]:
+                    m = np.atleast_2d(m)
+                    fh.write(f"{key}:\n  rows: {m.shape[0]}\n  cols: {m.shape[1]}\n  data: {mat_text(m)}\n")
+        raw_l = os.path.join(folder, "raw_left.png")
+        cv2.imwrite(raw_l, grey)
+        out = os.path.join(folder, "out")
+        run("rectify", raw_l, raw_l, "--calib", os.path.join(folder, "left.yaml"), "-o", out, "--maps", "-q")
+        map_err, img_err = 0.0, 0.0
+        for side, K, D, Rk, P, im in [("left", Kf[0], Df[0], R1f, P1f, "im0.png"),
+                                      ("right", Kf[1], Df[1], R2f, P2f, "im1.png")]:
+            mx, my = cv2.fisheye.initUndistortRectifyMap(K, D, Rk, P, size, cv2.CV_32FC1)
+            ox = cv2.imread(os.path.join(out, f"{side}_map_x.pfm"), cv2.IMREAD_UNCHANGED)
+            oy = cv2.imread(os.path.join(out, f"{side}_map_y.pfm"), cv2.IMREAD_UNCHANGED)
+            map_err = max(map_err, float(np.abs(ox - mx).max()), float(np.abs(oy - my).max()))
+            ref = cv2.remap(grey, mx, my, cv2.INTER_LINEAR)
+            got = cv2.imread(os.path.join(out, im), cv2.IMREAD_UNCHANGED)
+            img_err = max(img_err, float(np.abs(got.astype(np.float64) - ref).mean()))
+        table.append(("fisheye", "ros (equidistant)", "-", None, map_err, img_err))
+        check(map_err < 0.01, f"fisheye: maps differ by {map_err:g} px")
+        check(img_err < 1.0, f"fisheye: images differ by {img_err:g} grey levels")
+
         print("| rig | format | alpha | R1 R2 P1 P2 max abs diff | maps max diff (px) | image mean abs diff (grey levels) |")
         print("|---|---|---|---|---|---|")
         for rig_name, fmt, alpha, m, p, i in table:
-            print(f"| {rig_name} | {fmt} | {alpha} | {m:.1e} | {p:.1e} | {i:.3f} |")
+            matrices = "(the file's)" if m is None else f"{m:.1e}"
+            print(f"| {rig_name} | {fmt} | {alpha} | {matrices} | {p:.1e} | {i:.3f} |")
 
         # 2. Round trip: raw pairs made from rectified scenes, matched through --calib.
         print()

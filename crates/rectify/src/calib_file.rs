@@ -383,25 +383,44 @@ struct RosCamera {
 fn read_ros_camera(path: &Path, node: &Node) -> Result<RosCamera, CalibError> {
     let get = |key: &str| node.get(key).ok_or_else(|| err(path, format!("no {key} (ROS camera_info)")));
     let model = node.get("distortion_model").and_then(Node::text).unwrap_or("plumb_bob");
-    match model {
-        "plumb_bob" | "rational_polynomial" | "" => {}
-        "equidistant" | "fisheye" => {
+    let fisheye = match model {
+        "plumb_bob" | "rational_polynomial" | "" => false,
+        "equidistant" | "fisheye" => true,
+        other => {
             return Err(err(
                 path,
-                "distortion_model: equidistant (fisheye) is not supported yet; plumb_bob is",
+                format!(
+                    "distortion_model: {other} is not supported (plumb_bob, rational_polynomial and \
+                     equidistant are)"
+                ),
             ))
         }
-        other => return Err(err(path, format!("distortion_model: {other} is not supported (plumb_bob is)"))),
-    }
+    };
     let k = camera_matrix(path, get("camera_matrix")?, "camera_matrix")?;
-    let d = distortion(path, get("distortion_coefficients")?, "distortion_coefficients")?;
+    let camera = if fisheye {
+        let v = data_of(get("distortion_coefficients")?)
+            .numbers()
+            .map_err(|m| err(path, format!("distortion_coefficients: {m}")))?;
+        let d: [f64; 4] = v.as_slice().try_into().map_err(|_| {
+            err(
+                path,
+                format!(
+                    "distortion_coefficients: {} coefficients, want 4 (k1 k2 k3 k4) for equidistant",
+                    v.len()
+                ),
+            )
+        })?;
+        Camera::equidistant(k, d)
+    } else {
+        Camera::new(k, distortion(path, get("distortion_coefficients")?, "distortion_coefficients")?)
+    };
     let r = rotation(path, get("rectification_matrix")?, "rectification_matrix")?;
     let p = Matrix3x4::from_row_slice(&matrix(path, get("projection_matrix")?, "projection_matrix", 3, 4)?);
     if !(p[(0, 0)] > 0.0 && p[(1, 1)] > 0.0) {
         return Err(err(path, "projection_matrix: the focal lengths must be > 0"));
     }
     let size = size_from(path, node)?.ok_or_else(|| err(path, "no image_width and image_height"))?;
-    Ok(RosCamera { camera: Camera::new(k, d), r, p, size })
+    Ok(RosCamera { camera, r, p, size })
 }
 
 /// The sibling file with `left` ↔ `right` swapped in its name (any case).

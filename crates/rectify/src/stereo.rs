@@ -12,25 +12,43 @@ use rayon::prelude::*;
 use crate::calib_file::StereoCalibration;
 use crate::remap::RectifyMap;
 
+/// A lens model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LensModel {
+    /// Plumb bob / radial-tangential, and the rational model: `k1 k2 p1 p2 k3 k4 k5 k6`.
+    PlumbBob,
+    /// Equidistant (OpenCV's `fisheye`, ROS `equidistant`): `θd = θ(1 + k1θ² + k2θ⁴ + k3θ⁶ +
+    /// k4θ⁸)`, the coefficients in `dist[0..4]`.
+    Equidistant,
+}
+
 /// One camera: intrinsics and distortion.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
     /// `[fx s cx; 0 fy cy; 0 0 1]` (the skew `s` is ignored, as OpenCV's undistortion does).
     pub k: Matrix3<f64>,
-    /// `k1 k2 p1 p2 k3 k4 k5 k6` (missing ones are 0).
+    /// `k1 k2 p1 p2 k3 k4 k5 k6` (missing ones are 0), or `k1 k2 k3 k4` of the equidistant model.
     pub dist: [f64; 8],
     /// Whether any coefficient was given (OpenCV skips the iterative undistortion without).
     pub has_dist: bool,
+    pub model: LensModel,
 }
 
 impl Camera {
-    /// A camera from its matrix and 0, 4, 5 or 8 distortion coefficients.
+    /// A plumb-bob camera from its matrix and 0, 4, 5 or 8 distortion coefficients.
     pub fn new(k: Matrix3<f64>, coefficients: Vec<f64>) -> Self {
         let mut dist = [0.0; 8];
         for (d, c) in dist.iter_mut().zip(&coefficients) {
             *d = *c;
         }
-        Camera { k, dist, has_dist: !coefficients.is_empty() }
+        Camera { k, dist, has_dist: !coefficients.is_empty(), model: LensModel::PlumbBob }
+    }
+
+    /// An equidistant (fisheye) camera from its matrix and 4 coefficients `k1 k2 k3 k4`.
+    pub fn equidistant(k: Matrix3<f64>, coefficients: [f64; 4]) -> Self {
+        let mut dist = [0.0; 8];
+        dist[..4].copy_from_slice(&coefficients);
+        Camera { k, dist, has_dist: true, model: LensModel::Equidistant }
     }
 
     fn fx(&self) -> f64 {
@@ -48,6 +66,18 @@ impl Camera {
 
     /// Applies the distortion to a normalised point.
     pub fn distort(&self, x: f64, y: f64) -> (f64, f64) {
+        if self.model == LensModel::Equidistant {
+            let [k1, k2, k3, k4, ..] = self.dist;
+            let r = (x * x + y * y).sqrt();
+            let theta = r.atan();
+            let (t2, t4, t6, t8) = {
+                let t2 = theta * theta;
+                (t2, t2 * t2, t2 * t2 * t2, t2 * t2 * t2 * t2)
+            };
+            let theta_d = theta * (1.0 + k1 * t2 + k2 * t4 + k3 * t6 + k4 * t8);
+            let scale = if r == 0.0 { 1.0 } else { theta_d / r };
+            return (x * scale, y * scale);
+        }
         let [k1, k2, p1, p2, k3, k4, k5, k6] = self.dist;
         let (x2, y2) = (x * x, y * y);
         let r2 = x2 + y2;
@@ -63,6 +93,29 @@ impl Camera {
         let (x0, y0) = ((u - self.cx()) * (1.0 / self.fx()), (v - self.cy()) * (1.0 / self.fy()));
         if !self.has_dist {
             return (x0, y0);
+        }
+        if self.model == LensModel::Equidistant {
+            // Newton on θ (as cv::fisheye::undistortPoints).
+            let [k1, k2, k3, k4, ..] = self.dist;
+            let theta_d =
+                (x0 * x0 + y0 * y0).sqrt().clamp(-std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2);
+            if theta_d <= 1e-8 {
+                return (x0, y0);
+            }
+            let mut theta = theta_d;
+            for _ in 0..10 {
+                let t2 = theta * theta;
+                let (t4, t6, t8) = (t2 * t2, t2 * t2 * t2, t2 * t2 * t2 * t2);
+                let f = theta * (1.0 + k1 * t2 + k2 * t4 + k3 * t6 + k4 * t8) - theta_d;
+                let df = 1.0 + 3.0 * k1 * t2 + 5.0 * k2 * t4 + 7.0 * k3 * t6 + 9.0 * k4 * t8;
+                let step = f / df;
+                theta -= step;
+                if step.abs() < 1e-10 {
+                    break;
+                }
+            }
+            let scale = theta.tan() / theta_d;
+            return (x0 * scale, y0 * scale);
         }
         let [k1, k2, p1, p2, k3, k4, k5, k6] = self.dist;
         let (mut x, mut y) = (x0, y0);
@@ -302,6 +355,12 @@ pub fn undistort_rectify_map(
             for j in 0..w {
                 let jf = j as f64;
                 let (xh, yh, wh) = (bx + jf * ir[(0, 0)], by + jf * ir[(1, 0)], bw + jf * ir[(2, 0)]);
+                if camera.model == LensModel::Equidistant && wh <= 0.0 {
+                    // Behind the camera: nothing to sample.
+                    row_x[j] = -f32::MAX;
+                    row_y[j] = -f32::MAX;
+                    continue;
+                }
                 let iw = 1.0 / wh;
                 let (xd, yd) = camera.distort(xh * iw, yh * iw);
                 row_x[j] = (fx * xd + u0) as f32;
@@ -361,6 +420,15 @@ impl Rectifier {
             return Err(format!("alpha {alpha} is not in [0, 1]"));
         }
         let (r1, r2, p1, p2, computed) = match (&calibration.extrinsics, &calibration.given) {
+            (Some(_), _)
+                if [&calibration.left, &calibration.right]
+                    .iter()
+                    .any(|c| c.model == LensModel::Equidistant) =>
+            {
+                return Err("equidistant (fisheye) lenses: computing their rectification from R and T \
+                            (cv::fisheye::stereoRectify) is not supported; give R1 R2 P1 P2"
+                    .into())
+            }
             (Some((r, t)), _) => {
                 let rect = stereo_rectify(&calibration.left, &calibration.right, r, t, size, Some(alpha));
                 if !rect.horizontal {

@@ -173,10 +173,11 @@ fn ros_camera_info_pair() {
     );
     assert!(read_calibration(&left).unwrap_err().to_string().contains("differ from"));
     write(dir.path(), "right.yaml", &ros_file("right", -57.6).replace("plumb_bob", "equidistant"));
-    assert!(read_calibration(&left)
-        .unwrap_err()
-        .to_string()
-        .contains("equidistant (fisheye) is not supported"));
+    let message = read_calibration(&left).unwrap_err().to_string();
+    assert!(message.contains("want 4 (k1 k2 k3 k4) for equidistant"), "{message}");
+    write(dir.path(), "right.yaml", &ros_file("right", -57.6).replace("plumb_bob", "kannala"));
+    let message = read_calibration(&left).unwrap_err().to_string();
+    assert!(message.contains("distortion_model: kannala is not supported"), "{message}");
 }
 
 /// A smooth texture with detail at several scales.
