@@ -520,6 +520,17 @@ mod tests {
     }
 
     #[test]
+    fn equidistant_undistort_inverts_distort() {
+        let k = Matrix3::new(300.0, 0.0, 320.0, 0.0, 300.0, 240.0, 0.0, 0.0, 1.0);
+        let cam = Camera::equidistant(k, [0.05, -0.01, 0.003, -0.0005]);
+        for (x, y) in [(0.0, 0.0), (0.4, -0.3), (-1.2, 0.8)] {
+            let (xd, yd) = cam.distort(x, y);
+            let (ux, uy) = cam.undistort_normalized(300.0 * xd + 320.0, 300.0 * yd + 240.0);
+            assert!((ux - x).abs() < 1e-9 && (uy - y).abs() < 1e-9, "{x} {y}: {ux} {uy}");
+        }
+    }
+
+    #[test]
     fn undistort_inverts_distort() {
         let k = Matrix3::new(500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0);
         let cam = Camera::new(k, vec![-0.1, 0.02, 0.001, -0.0005, 0.0]);
