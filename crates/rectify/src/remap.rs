@@ -12,12 +12,19 @@ const TAB_BITS: u32 = 5;
 
 /// For every destination pixel, the source position to sample (`x`, `y` in px; OpenCV's
 /// `CV_32FC1` map pair).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, PartialEq)]
 pub struct RectifyMap {
     width: usize,
     height: usize,
     x: Vec<f32>,
     y: Vec<f32>,
+}
+
+/// The size only: a map holds millions of positions.
+impl std::fmt::Debug for RectifyMap {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "RectifyMap({}x{})", self.width, self.height)
+    }
 }
 
 impl RectifyMap {
