@@ -321,8 +321,41 @@ fn read_opencv(path: &Path, node: &Node, format: CalibFormat) -> Result<StereoCa
             None => Err(err(path, format!("no {} (distortion coefficients; give [] for none)", names[0]))),
         }
     };
-    let left = Camera::new(left_k, d(&["D1", "distCoeffs1", "dist_coeffs_1"])?);
-    let right = Camera::new(right_k, d(&["D2", "distCoeffs2", "dist_coeffs_2"])?);
+    // cv::fisheye files say nothing of their model: `distortion_model: fisheye` (or
+    // `equidistant`, as ROS names it) marks them.
+    let fisheye =
+        match find(&["distortion_model", "model"]) {
+            None => false,
+            Some((key, n)) => match n.text().unwrap_or("") {
+                "fisheye" | "equidistant" => true,
+                "plumb_bob" | "rational_polynomial" | "pinhole" | "" => false,
+                other => return Err(err(
+                    path,
+                    format!(
+                        "{key}: {other} is not supported (plumb_bob, rational_polynomial and fisheye are)"
+                    ),
+                )),
+            },
+        };
+    let camera = |k: Matrix3<f64>, names: &[&'static str]| -> Result<Camera, CalibError> {
+        let coefficients = d(names)?;
+        if !fisheye {
+            return Ok(Camera::new(k, coefficients));
+        }
+        let four: [f64; 4] = coefficients.as_slice().try_into().map_err(|_| {
+            err(
+                path,
+                format!(
+                    "{}: {} coefficients, want 4 (k1 k2 k3 k4) for fisheye",
+                    names[0],
+                    coefficients.len()
+                ),
+            )
+        })?;
+        Ok(Camera::equidistant(k, four))
+    };
+    let left = camera(left_k, &["D1", "distCoeffs1", "dist_coeffs_1"])?;
+    let right = camera(right_k, &["D2", "distCoeffs2", "dist_coeffs_2"])?;
     let image_size = size_from(path, node)?;
 
     let r = find(&["R", "rotation"]);

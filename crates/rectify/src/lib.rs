@@ -54,6 +54,6 @@ pub use calib_file::{
 };
 pub use remap::{RectifyMap, Sample};
 pub use stereo::{
-    rodrigues, rotation_vector, stereo_rectify, undistort_rectify_map, Camera, LensModel, RectifiedRig,
-    Rectifier, StereoRectification,
+    fisheye_stereo_rectify, rodrigues, rotation_vector, stereo_rectify, undistort_rectify_map, Camera,
+    LensModel, RectifiedRig, Rectifier, StereoRectification,
 };

@@ -333,6 +333,88 @@ pub fn stereo_rectify(
     StereoRectification { r1, r2, p1, p2, q, horizontal: idx == 0 }
 }
 
+/// `cv::fisheye::estimateNewCameraMatrixForUndistortRectify(K, D, size, R, balance)`: the
+/// camera matrix that fits the undistorted, rotated image (`balance` 0: the narrower of the
+/// fits, 1: the wider).
+fn fisheye_new_camera_matrix(
+    camera: &Camera,
+    r: &Matrix3<f64>,
+    size: (usize, usize),
+    balance: f64,
+) -> Matrix3<f64> {
+    let (w, h) = (size.0 as f64, size.1 as f64);
+    let balance = balance.clamp(0.0, 1.0);
+    // OpenCV takes w/2 and h/2 in integers.
+    let (hw, hh) = ((size.0 / 2) as f64, (size.1 / 2) as f64);
+    let mut points: Vec<(f64, f64)> = [(hw, 0.0), (w, hh), (hw, h), (0.0, hh)]
+        .iter()
+        .map(|&(u, v)| camera.undistort_point(u, v, r))
+        .collect();
+    let aspect = camera.fx() / camera.fy();
+    let mut cn = points.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+    cn = (cn.0 / 4.0, cn.1 / 4.0 * aspect);
+    for p in &mut points {
+        p.1 *= aspect;
+    }
+    let (minx, maxx) = points.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
+    let (miny, maxy) = points.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.1), a.1.max(p.1)));
+    let f = [
+        w * 0.5 / (cn.0 - minx),
+        w * 0.5 / (maxx - cn.0),
+        h * 0.5 * aspect / (cn.1 - miny),
+        h * 0.5 * aspect / (maxy - cn.1),
+    ];
+    let fmin = f.iter().copied().fold(f64::MAX, f64::min);
+    let fmax = f.iter().copied().fold(f64::MIN, f64::max);
+    let f = balance * fmin + (1.0 - balance) * fmax;
+    let (cx, cy) = (-cn.0 * f + w * 0.5, (-cn.1 * f + h * aspect * 0.5) / aspect);
+    Matrix3::new(f, 0.0, cx, 0.0, f / aspect, cy, 0.0, 0.0, 1.0)
+}
+
+/// `cv::fisheye::stereoRectify(K1, D1, K2, D2, size, R, T, CALIB_ZERO_DISPARITY, balance)` for
+/// equidistant cameras (horizontal rigs).
+pub fn fisheye_stereo_rectify(
+    left: &Camera,
+    right: &Camera,
+    r: &Matrix3<f64>,
+    t: &Vector3<f64>,
+    size: (usize, usize),
+    balance: f64,
+) -> StereoRectification {
+    let r_r = rodrigues(&(rotation_vector(r) * -0.5));
+    let tt = r_r * t;
+    let uu = Vector3::new(if tt.x > 0.0 { 1.0 } else { -1.0 }, 0.0, 0.0);
+    let mut ww = tt.cross(&uu);
+    let nw = ww.norm();
+    if nw > 0.0 {
+        ww *= (tt.x.abs() / tt.norm()).acos() / nw;
+    }
+    let wr = rodrigues(&ww);
+    let r1 = wr * r_r.transpose();
+    let r2 = wr * r_r;
+    let tnew = r2 * t;
+    let k1 = fisheye_new_camera_matrix(left, &r1, size, balance);
+    let k2 = fisheye_new_camera_matrix(right, &r2, size, balance);
+    let fc = k1[(1, 1)].min(k2[(1, 1)]);
+    let cc = ((k1[(0, 2)] + k2[(0, 2)]) * 0.5, (k1[(1, 2)] + k2[(1, 2)]) * 0.5);
+    let mut p1 = Matrix3x4::zeros();
+    p1[(0, 0)] = fc;
+    p1[(1, 1)] = fc;
+    p1[(0, 2)] = cc.0;
+    p1[(1, 2)] = cc.1;
+    p1[(2, 2)] = 1.0;
+    let mut p2 = p1;
+    p2[(0, 3)] = tnew.x * fc;
+    #[rustfmt::skip]
+    let q = Matrix4::new(
+        1.0, 0.0, 0.0, -cc.0,
+        0.0, 1.0, 0.0, -cc.1,
+        0.0, 0.0, 0.0, fc,
+        0.0, 0.0, -1.0 / tnew.x, 0.0,
+    );
+    StereoRectification { r1, r2, p1, p2, q, horizontal: tnew.x.abs() >= tnew.y.abs() }
+}
+
 /// `cv::initUndistortRectifyMap(K, D, R, P, size, CV_32FC1)`: for every rectified pixel, where
 /// to sample the raw image.
 pub fn undistort_rectify_map(
@@ -425,9 +507,19 @@ impl Rectifier {
                     .iter()
                     .any(|c| c.model == LensModel::Equidistant) =>
             {
-                return Err("equidistant (fisheye) lenses: computing their rectification from R and T \
-                            (cv::fisheye::stereoRectify) is not supported; give R1 R2 P1 P2"
-                    .into())
+                if calibration.left.model != calibration.right.model {
+                    return Err("one equidistant (fisheye) and one plumb-bob camera: not supported".into());
+                }
+                let (r, t) = calibration.extrinsics.as_ref().expect("matched Some");
+                // alpha is fisheye's balance (0: only valid pixels).
+                let rect = fisheye_stereo_rectify(&calibration.left, &calibration.right, r, t, size, alpha);
+                if !rect.horizontal {
+                    return Err(
+                        "the cameras are one above the other (|Ty| > |Tx|): vertical rigs are not supported"
+                            .into(),
+                    );
+                }
+                (rect.r1, rect.r2, rect.p1, rect.p2, true)
             }
             (Some((r, t)), _) => {
                 let rect = stereo_rectify(&calibration.left, &calibration.right, r, t, size, Some(alpha));
