@@ -323,20 +323,21 @@ fn read_opencv(path: &Path, node: &Node, format: CalibFormat) -> Result<StereoCa
     };
     // cv::fisheye files say nothing of their model: `distortion_model: fisheye` (or
     // `equidistant`, as ROS names it) marks them.
-    let fisheye =
-        match find(&["distortion_model", "model"]) {
-            None => false,
-            Some((key, n)) => match n.text().unwrap_or("") {
-                "fisheye" | "equidistant" => true,
-                "plumb_bob" | "rational_polynomial" | "pinhole" | "" => false,
-                other => return Err(err(
+    let fisheye = match find(&["distortion_model", "model"]) {
+        None => false,
+        Some((key, n)) => match n.text().unwrap_or("") {
+            "fisheye" | "equidistant" => true,
+            "plumb_bob" | "rational_polynomial" | "pinhole" | "" => false,
+            other => {
+                return Err(err(
                     path,
                     format!(
                         "{key}: {other} is not supported (plumb_bob, rational_polynomial and fisheye are)"
                     ),
-                )),
-            },
-        };
+                ))
+            }
+        },
+    };
     let camera = |k: Matrix3<f64>, names: &[&'static str]| -> Result<Camera, CalibError> {
         let coefficients = d(names)?;
         if !fisheye {

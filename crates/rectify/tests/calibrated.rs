@@ -90,6 +90,65 @@ fn opencv_yaml_matches_opencv() {
     assert!(Rectifier::new(&cal, (320, 240), 0.0).unwrap_err().contains("calibrated for 640x480"));
 }
 
+/// A `cv::fisheye` calibration written by `cv2.FileStorage`, marked `distortion_model: fisheye`.
+const FISHEYE_YAML: &str = "%YAML 1.2
+---
+K1: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [ 288., 0., 323., 0., 288., 238., 0., 0., 1. ]
+D1: !!opencv-matrix
+   rows: 4
+   cols: 1
+   dt: d
+   data: [ 0.050000000000000003, -0.01, 0.0030000000000000001,
+       -0.00050000000000000001 ]
+K2: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [ 290.88, 0., 316., 0., 291.46175999999997, 243., 0., 0., 1. ]
+D2: !!opencv-matrix
+   rows: 4
+   cols: 1
+   dt: d
+   data: [ 0.044999999999999998, -0.0080000000000000002, 0.002,
+       -0.00040000000000000002 ]
+R: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [ 0.99978750929671234, -0.0050995581365608014,
+       -0.019973251139667782, 0.0048995668864076601, 0.99993750273432713,
+       -0.010049122835506748, 0.020023248952206064,
+       0.0099491272104301753, 0.99975001093730853 ]
+T: !!opencv-matrix
+   rows: 3
+   cols: 1
+   dt: d
+   data: [ -0.10000000000000001, 0.002, -0.001 ]
+distortion_model: fisheye
+";
+
+#[test]
+fn fisheye_opencv_file_matches_cv_fisheye() {
+    let dir = tempfile::tempdir().unwrap();
+    let cal = stereo(read_calibration(&write(dir.path(), "fisheye.yaml", FISHEYE_YAML)).unwrap());
+    assert_eq!(cal.left.model, stereo_rectify::LensModel::Equidistant);
+    let r = Rectifier::new(&cal, (640, 480), 0.0).unwrap();
+    // cv2.fisheye.stereoRectify(..., flags=CALIB_ZERO_DISPARITY, balance=0) (OpenCV 5.0).
+    let want = [228.83923105274653, 318.9552129937164, 240.70057753040766, -22.889643371107102];
+    let got = [r.p1[(0, 0)], r.p1[(0, 2)], r.p1[(1, 2)], r.p2[(0, 3)]];
+    for (a, b) in got.iter().zip(want) {
+        assert!((a - b).abs() < 1e-6, "{got:?} vs {want:?}");
+    }
+    let five =
+        FISHEYE_YAML.replace("-0.00050000000000000001 ]", "-0.0005, 0.1 ]").replace("rows: 4", "rows: 5");
+    let message = read_calibration(&write(dir.path(), "five.yaml", &five)).unwrap_err().to_string();
+    assert!(message.contains("D1: 5 coefficients, want 4 (k1 k2 k3 k4) for fisheye"), "{message}");
+}
+
 #[test]
 fn same_keys_in_xml_json_and_plain_yaml() {
     let dir = tempfile::tempdir().unwrap();
