@@ -116,6 +116,9 @@ pub enum Command {
     /// Write a degraded copy of a pair (gain, gamma, bias, vignetting, noise, JPEG, blur, vertical
     /// shift, rotation) for robustness measurements.
     Degrade(DegradeArgs),
+    /// Rectify a raw pair with its calibration (OpenCV YAML/XML/JSON or ROS camera_info): writes
+    /// the rectified pair and the rectified rig's calib.txt.
+    Rectify(RectifyArgs),
 }
 
 /// `stereo-depth info FILE`.
@@ -238,12 +241,20 @@ pub struct RigArgs {
     #[arg(long, value_name = "PX", allow_negative_numbers = true, help_heading = "Rig")]
     pub focal_px: Option<f64>,
 
-    /// Middlebury calibration file (cam0=[f 0 cx; 0 f cy; 0 0 1], doffs, baseline in mm, width,
-    /// height, ndisp): gives the focal length in pixels, the principal point, doffs, the baseline
-    /// and ndisp as --max-disparity; --baseline, --doffs, --cx/--cy and --max-disparity given too
-    /// take precedence. The images must be width x height.
-    #[arg(long, value_name = "calib.txt", help_heading = "Rig")]
+    /// Calibration file, detected from its content. A Middlebury calib.txt (cam0=[f 0 cx; 0 f cy;
+    /// 0 0 1], doffs, baseline in mm, width, height, ndisp) describes an already rectified pair. An
+    /// OpenCV stereo calibration (FileStorage YAML/XML or JSON: K1 D1 K2 D2 R T) or ROS
+    /// camera_info files (left.yaml with right.yaml beside it, or their folder) describe raw
+    /// cameras: the pair is rectified first (see docs/calibration.md). Either gives the focal
+    /// length in pixels, the principal point, doffs and the baseline; --baseline, --doffs,
+    /// --cx/--cy and --max-disparity given too take precedence.
+    #[arg(long, value_name = "FILE", help_heading = "Rig")]
     pub calib: Option<PathBuf>,
+
+    /// Rectification scaling for a raw --calib (OpenCV's stereoRectify alpha): 0 keeps only
+    /// valid pixels, 1 keeps every source pixel.
+    #[arg(long, value_name = "0..1", default_value_t = 0.0, help_heading = "Rig")]
+    pub alpha: f64,
 
     /// Sensor width in millimetres: reports the horizontal field of view 2*atan(w / 2f) (needs
     /// the focal length in mm: --focal, or --pixel with --focal-px or --calib).
@@ -770,4 +781,33 @@ pub struct DegradeArgs {
 
 fn parse_spec(spec: &str) -> Result<Degradation, String> {
     spec.parse().map_err(|e: stereo_degrade::Error| e.to_string())
+}
+
+/// `stereo-depth rectify LEFT RIGHT --calib FILE -o DIR`.
+#[derive(Debug, Args)]
+pub struct RectifyArgs {
+    /// The raw left image.
+    #[arg(value_name = "LEFT")]
+    pub left: PathBuf,
+    /// The raw right image.
+    #[arg(value_name = "RIGHT")]
+    pub right: PathBuf,
+    /// The calibration: OpenCV stereo calibration (FileStorage YAML/XML or JSON: K1 D1 K2 D2 R T),
+    /// or ROS camera_info (left.yaml with right.yaml beside it, or their folder).
+    #[arg(long, value_name = "FILE")]
+    pub calib: PathBuf,
+    /// Output folder: im0.png, im1.png (the rectified pair), calib.txt (the rectified rig,
+    /// Middlebury format) and rectification.yaml (R1 R2 P1 P2, OpenCV format).
+    #[arg(short = 'o', long = "out", value_name = "DIR")]
+    pub out: PathBuf,
+    /// Free scaling (OpenCV's stereoRectify alpha): 0 keeps only valid pixels, 1 every source pixel.
+    #[arg(long, value_name = "0..1", default_value_t = 0.0)]
+    pub alpha: f64,
+    /// Also write the undistort-rectify maps as PFM images (left_map_x.pfm, left_map_y.pfm,
+    /// right_map_x.pfm, right_map_y.pfm: the source position of every rectified pixel).
+    #[arg(long)]
+    pub maps: bool,
+    /// Print nothing but errors.
+    #[arg(long, short = 'q')]
+    pub quiet: bool,
 }

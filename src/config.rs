@@ -57,6 +57,8 @@ pub struct RigFlags {
     pub calib: Option<Calib>,
     /// Its path, for messages.
     pub calib_path: Option<PathBuf>,
+    /// The --calib file when it is a raw (OpenCV/ROS) calibration: pairs are rectified first.
+    pub raw: Option<std::sync::Arc<crate::rectify_cmd::RawCalib>>,
 }
 
 impl RigFlags {
@@ -65,7 +67,10 @@ impl RigFlags {
     pub fn from_args(args: &RigArgs) -> anyhow::Result<Self> {
         let mut flags = RigFlags::check(args)?;
         if let Some(path) = &args.calib {
-            flags.calib = Some(stereo_io::read_calib(path)?);
+            match crate::rectify_cmd::read_calib_flag(path, args.alpha)? {
+                crate::rectify_cmd::CalibFlag::Middlebury(calib) => flags.calib = Some(calib),
+                crate::rectify_cmd::CalibFlag::Raw(raw) => flags.raw = Some(raw),
+            }
             flags.calib_path = Some(path.clone());
         }
         Ok(flags)
@@ -107,6 +112,7 @@ impl RigFlags {
             sensor_width_mm: args.sensor_width,
             calib: None,
             calib_path: None,
+            raw: None,
         };
         // Every value given is checked now, with stand-ins for the others.
         let rig = Rig::from_datasheet(
@@ -138,7 +144,12 @@ impl RigFlags {
             (None, Some(calib), Some(path)) => calib.baseline_mm.map(|mm| (mm, BaselineSource::Calib(path))),
             _ => None,
         };
-        checks::rig_warnings(baseline, self.pixel_um)
+        let mut warnings = checks::rig_warnings(baseline, self.pixel_um);
+        // The unit of an OpenCV calibration's T is a guess unless --baseline overrides it.
+        if let (Some(raw), None) = (&self.raw, self.baseline_mm) {
+            warnings.extend(raw.unit_warning());
+        }
+        warnings
     }
 
     /// Whether any flag that describes the rig was given.
@@ -151,11 +162,12 @@ impl RigFlags {
             || self.principal_point.is_some()
             || self.sensor_width_mm.is_some()
             || self.calib.is_some()
+            || self.raw.is_some()
     }
 
     /// Whether the flags (with --calib) alone define the rig (no calib.txt needed).
     pub fn is_complete(&self) -> bool {
-        self.resolve(None).is_ok()
+        self.raw.is_some() || self.resolve(None).is_ok()
     }
 
     /// The calibration in force for a pair: --calib, else the pair's own calib.txt.
@@ -350,13 +362,25 @@ pub struct PairConfig {
     pub depth_limits: Option<DepthLimits>,
     /// Compensate a measured vertical misalignment of the right view before matching.
     pub align: bool,
+    /// Rectify the raw pair first (a raw --calib).
+    pub rectify: Option<std::sync::Arc<stereo_rectify::Rectifier>>,
 }
 
 impl PairConfig {
     pub fn from_args(args: PairArgs) -> anyhow::Result<Self> {
-        let flags = RigFlags::from_args(&args.rig)?;
+        let mut flags = RigFlags::from_args(&args.rig)?;
+        // A raw calibration: rectified for the images' size, the rig is the rectified one.
+        let rectify = match (&flags.raw, &args.left) {
+            (Some(raw), Some(left)) => {
+                let (calib, rectifier) = raw.calib_for(raw.size_for(left)?)?;
+                flags.calib = Some(calib);
+                Some(rectifier)
+            }
+            _ => None,
+        };
         let warnings = flags.warnings();
-        let config = PairConfig::from_flags(args, flags)?;
+        let mut config = PairConfig::from_flags(args, flags)?;
+        config.rectify = rectify;
         // Only once the arguments are known to be valid: a usage error stays one line.
         checks::print_warnings(&warnings);
         Ok(config)
@@ -438,6 +462,7 @@ impl PairConfig {
             extras: settings.extras,
             depth_limits,
             align: !args.no_align,
+            rectify: None,
         };
         config.check_paths()?;
         Ok(config)

@@ -18,6 +18,7 @@ mod eval_folder;
 mod info;
 mod limits;
 mod pair;
+mod rectify_cmd;
 mod report;
 mod writers;
 
@@ -80,6 +81,7 @@ fn run() -> anyhow::Result<ExitCode> {
             let config = DegradeConfig::from_args(args)?;
             degrade_cmd::run(&config, &mut stdout)?;
         }
+        Some(Command::Rectify(args)) => rectify_cmd::run(&args, &mut stdout)?,
         Some(Command::EvalFolder(args)) => {
             let config = EvalFolderConfig::from_args(*args)?;
             eval_folder::run(&config, &mut stdout)?;

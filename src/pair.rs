@@ -60,6 +60,13 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
         }
     }
 
+    // A raw pair (--calib with an OpenCV/ROS calibration) is rectified before matching.
+    let t = Instant::now();
+    let (left, right) = match &config.rectify {
+        Some(rectifier) => crate::rectify_cmd::rectify_gray(rectifier, &left, &right),
+        None => (left, right),
+    };
+    let remap = config.rectify.as_ref().map(|_| t.elapsed());
     let result = plan.run_gray(&left, right).map_err(|err| matching_error(config, &plan, err))?;
     drop(left);
     warn_about_rectification(config, &result.rectification);
@@ -69,7 +76,7 @@ pub fn process(config: &PairConfig) -> Result<Stats> {
     let counts = writers::write_outputs(config, &result, colour.as_ref(), &mut written)?;
     let write = t.elapsed();
     let stats =
-        Stats::new(config, &plan, &result, counts, StageTimes { load, write, total: start.elapsed() });
+        Stats::new(config, &plan, &result, counts, StageTimes { load, remap, write, total: start.elapsed() });
     if let Some(path) = &config.stats {
         let mut json = serde_json::to_vec_pretty(&stats).context("cannot serialise the statistics")?;
         json.push(b'\n');

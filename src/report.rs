@@ -53,6 +53,8 @@ pub struct Stats {
 /// Times the command measured around the pipeline.
 pub struct StageTimes {
     pub load: Duration,
+    /// Undistorting and rectifying a raw pair (a raw --calib), `None` otherwise.
+    pub remap: Option<Duration>,
     pub write: Duration,
     pub total: Duration,
 }
@@ -113,6 +115,7 @@ impl Stats {
             ),
             timings_ms: Timings {
                 load: ms(times.load),
+                remap: times.remap.map(ms),
                 rectification: ms(result.timings.rectification),
                 match_: ms(result.timings.matching),
                 triangulate: ms(result.timings.triangulation),
@@ -276,6 +279,9 @@ impl RectificationReport {
 #[derive(Debug, Default, Serialize)]
 pub struct Timings {
     pub load: f64,
+    /// Undistorting and rectifying a raw pair through its calibration's maps (a raw --calib).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub remap: Option<f64>,
     /// Measuring (and compensating) the pair's vertical misalignment.
     pub rectification: f64,
     #[serde(rename = "match")]
@@ -459,7 +465,13 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
     let t = &stats.timings_ms;
     writeln!(
         out,
-        "time ms       load {:.1}  match {:.1} ({:.0} MDE/s)  triangulate {:.1}  write {:.1}  total {:.1}",
-        t.load, t.match_, stats.mde_per_s, t.triangulate, t.write, t.total
+        "time ms       load {:.1}{}  match {:.1} ({:.0} MDE/s)  triangulate {:.1}  write {:.1}  total {:.1}",
+        t.load,
+        t.remap.map(|r| format!("  rectify {r:.1}")).unwrap_or_default(),
+        t.match_,
+        stats.mde_per_s,
+        t.triangulate,
+        t.write,
+        t.total
     )
 }

@@ -59,6 +59,11 @@ pub fn write_outputs<'a>(
         counts.depth_png_too_deep = Some(too_deep);
     }
     if let (Some(path), Some(setup)) = (&config.points, &config.rig) {
+        // The colours of the left view as decoded with it, rectified like it for a raw pair.
+        let colour = match (colour, &config.rectify) {
+            (Some(colour), Some(rectifier)) => Some(rectifier.left.remap(colour)),
+            (colour, _) => colour.cloned(),
+        };
         let Some(colour) = colour.filter(|c| c.size() == disparity.size()) else {
             bail!("{}: no colours of the left view's size for the point cloud", config.left.display());
         };

@@ -161,6 +161,11 @@ pub fn run(config: &BatchConfig, out: &mut impl Write) -> Result<ExitCode> {
             wall.as_secs_f64(),
             if wall > Duration::ZERO { processed as f64 / wall.as_secs_f64() } else { 0.0 }
         )?;
+        if let Some(raw) = &config.rig.raw {
+            let n = raw.cache.computed();
+            let times = if n == 1 { "once".to_string() } else { format!("{n} times (once per image size)") };
+            writeln!(out, "rectification ({}): maps computed {times}", raw.path.display())?;
+        }
     }
     report_written(&summary, &written, out)
 }
@@ -259,8 +264,15 @@ fn process(config: &BatchConfig, job: &Job) -> Result<Stats> {
     }
 
     // --calib replaces the pair's own calib.txt (which is then not read).
-    let found = match (&config.rig.calib, &job.spec.calib) {
-        (None, Some(path)) => Some(stereo_io::read_calib(&config.input.join(path))?),
+    let mut rectify = None;
+    let found = match (&config.rig.calib, &config.rig.raw, &job.spec.calib) {
+        // A raw --calib: the rectifier of this pair's size (maps made once per size).
+        (None, Some(raw), _) => {
+            let (calib, rectifier) = raw.calib_for(raw.size_for(&config.input.join(&job.spec.left))?)?;
+            rectify = Some(rectifier);
+            Some(calib)
+        }
+        (None, None, Some(path)) => Some(stereo_io::read_calib(&config.input.join(path))?),
         _ => None,
     };
     let calib = config.rig.calib(found.as_ref());
@@ -298,6 +310,7 @@ fn process(config: &BatchConfig, job: &Job) -> Result<Stats> {
         extras: settings.extras,
         depth_limits: config.depth_limits,
         align: true,
+        rectify,
     };
     pair::process(&pair)
 }

@@ -45,7 +45,8 @@ pub use exr::{exr_channel_names, read_exr_channel, write_exr};
 pub use pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
 pub use ply::{encode_ply, read_ply_info, write_ply, PlyInfo, PlyProperty, PlyVertex};
 pub use png16::{
-    depth_to_mm, disparity_to_kitti, read_png_info, write_png16, PngInfo, DEPTH_PNG_MAX_MM, KITTI_SCALE,
+    depth_to_mm, disparity_to_kitti, read_png_info, write_png16, write_png8, PngInfo, DEPTH_PNG_MAX_MM,
+    KITTI_SCALE,
 };
 pub use preview::{label as preview_label, render_preview, turbo, write_png_rgb8, ColourScale, Preview};
 pub use raster::{

@@ -69,6 +69,17 @@ pub fn write_png16(path: &Path, image: &Image<u16>) -> Result<(), Error> {
     write_png_buffer(path, buffer)
 }
 
+/// Writes an 8-bit greyscale PNG atomically.
+pub fn write_png8(path: &Path, image: &Image<u8>) -> Result<(), Error> {
+    let (w, h) = image.size();
+    if w == 0 || h == 0 {
+        return Err(format_err(path, format!("cannot write a {w}x{h} PNG (empty image)")));
+    }
+    let buffer: Option<ImageBuffer<Luma<u8>, Vec<u8>>> =
+        ImageBuffer::from_raw(w as u32, h as u32, image.as_slice().to_vec());
+    write_png_buffer(path, buffer)
+}
+
 /// Encodes `buffer` (`None`: its size did not match) as PNG and writes it atomically.
 pub(crate) fn write_png_buffer<P>(
     path: &Path,

@@ -1,4 +1,11 @@
-//! Rectification checks of stereo pairs.
+//! Rectification of stereo pairs.
+//!
+//! Raw pairs from a calibrated rig: [`read_calibration`] reads OpenCV (YAML, XML, JSON), ROS
+//! `camera_info` and Middlebury calibrations; a [`Rectifier`] (Bouguet's construction as in
+//! OpenCV's `stereoRectify`, plumb-bob distortion) holds the undistort-rectify maps of one
+//! calibration at one image size and the rectified rig, and [`RectifyMap::remap`] applies them.
+//!
+//! Already rectified pairs:
 //!
 //! A rectified pair puts every scene point on the same row of both views. Real rigs drift: the
 //! right view ends up a fraction of a pixel higher or lower, or slightly rotated, and matching
@@ -34,5 +41,21 @@
 //! ```
 
 mod alignment;
+mod cache;
+mod calib_file;
+mod camera;
+mod remap;
+mod stereo;
+mod tree;
 
 pub use alignment::{compensate, estimate_alignment, Alignment, AlignmentVerdict};
+pub use cache::RectifierCache;
+pub use calib_file::{
+    read_calibration, CalibError, CalibFormat, CalibrationFile, GivenRectification, StereoCalibration,
+};
+pub use camera::{rodrigues, rotation_vector, Camera, LensModel};
+pub use remap::{RectifyMap, Sample};
+pub use stereo::{
+    fisheye_stereo_rectify, stereo_rectify, undistort_rectify_map, RectifiedRig, Rectifier,
+    StereoRectification,
+};
