@@ -341,9 +341,12 @@ impl Matcher {
     ) -> PyResult<DetailedResult> {
         let (result, run) = self.run(py, left, right)?;
         let (w, h) = result.disparity.size();
+        // Only a dense fill invents disparities (without it, a pixel with a status can still hold
+        // a value, e.g. one that edge snapping moved).
+        let fill = matches!(&self.matcher, stereo_pipeline::Matcher::Sgm(p) if p.fill);
         let filled = match &result.status {
-            Some(status) => stereo_disparity::filled_mask(&result.disparity, status).view().map(|v| v != 0),
-            None => Image::new(w, h, false),
+            Some(status) if fill => stereo_disparity::filled_mask(&result.disparity, status).view().map(|v| v != 0),
+            _ => Image::new(w, h, false),
         };
         let timings = PyDict::new(py);
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1000.0;
