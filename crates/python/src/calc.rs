@@ -27,7 +27,13 @@ fn keyword(param: Param) -> &'static str {
 }
 
 fn design_error(err: DesignError) -> PyErr {
-    value_error(format!("invalid {} {} {} (must be {})", keyword(err.param), err.value, err.unit, err.expected))
+    value_error(format!(
+        "invalid {} {} {} (must be {})",
+        keyword(err.param),
+        err.value,
+        err.unit,
+        err.expected
+    ))
 }
 
 fn to_py<'py>(py: Python<'py>, value: &Value) -> PyResult<Bound<'py, PyAny>> {

@@ -1,8 +1,8 @@
 //! Files: PFM disparity maps, OpenEXR depth maps, images and PLY point clouds (`stereo-io`).
 
+use numpy::ndarray::Array3;
 use numpy::prelude::*;
 use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyUntypedArray};
-use numpy::ndarray::Array3;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use stereo_image::Image;

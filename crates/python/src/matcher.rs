@@ -95,9 +95,8 @@ fn scaled(obj: &Bound<'_, PyAny>, what: &str, unit: u64) -> PyResult<u64> {
         }
         return Ok(n as u64);
     }
-    let text: String = obj
-        .extract()
-        .map_err(|_| value_error(format!("{what} must be an int or a string like \"4G\"")))?;
+    let text: String =
+        obj.extract().map_err(|_| value_error(format!("{what} must be an int or a string like \"4G\"")))?;
     let t = text.trim();
     let (digits, power) = match t.char_indices().last() {
         Some((i, c)) if c.is_ascii_alphabetic() => {
@@ -106,13 +105,18 @@ fn scaled(obj: &Bound<'_, PyAny>, what: &str, unit: u64) -> PyResult<u64> {
                 'M' => 2,
                 'G' => 3,
                 'T' => 4,
-                _ => return Err(value_error(format!("invalid {what} {text:?}: unknown suffix {c:?} (want K, M, G or T)"))),
+                _ => {
+                    return Err(value_error(format!(
+                        "invalid {what} {text:?}: unknown suffix {c:?} (want K, M, G or T)"
+                    )))
+                }
             };
             (&t[..i], power)
         }
         _ => (t, 0),
     };
-    let n: u64 = digits.parse().map_err(|_| value_error(format!("invalid {what} {text:?}: not a whole number")))?;
+    let n: u64 =
+        digits.parse().map_err(|_| value_error(format!("invalid {what} {text:?}: not a whole number")))?;
     let value = unit
         .checked_pow(power)
         .and_then(|s| n.checked_mul(s))
@@ -201,9 +205,9 @@ impl Matcher {
                 return Ok(None);
             }
             match lr_max_diff {
-                Some(d) if !(d.is_finite() && d >= 0.0) => Err(value_error(format!(
-                    "lr_max_diff must be a non-negative number of pixels, got {d}"
-                ))),
+                Some(d) if !(d.is_finite() && d >= 0.0) => {
+                    Err(value_error(format!("lr_max_diff must be a non-negative number of pixels, got {d}")))
+                }
                 Some(d) => Ok(Some(d as f32)),
                 None => Ok(default),
             }
@@ -213,7 +217,11 @@ impl Matcher {
                 choice(
                     "subpixel",
                     s,
-                    &[("none", Subpixel::None), ("parabola", Subpixel::Parabola), ("equiangular", Subpixel::Equiangular)],
+                    &[
+                        ("none", Subpixel::None),
+                        ("parabola", Subpixel::Parabola),
+                        ("equiangular", Subpixel::Equiangular),
+                    ],
                 )
             })
             .transpose()?;
@@ -272,7 +280,9 @@ impl Matcher {
             let block_size = match block_size {
                 None => defaults.block_size,
                 Some(b) if b >= 3 && b % 2 == 1 => b as usize,
-                Some(b) => return Err(value_error(format!("block_size must be odd and at least 3, got {b}"))),
+                Some(b) => {
+                    return Err(value_error(format!("block_size must be odd and at least 3, got {b}")))
+                }
             };
             let cost = bm_cost
                 .map(|c| choice("bm_cost", c, &[("sad", BmCost::Sad), ("census", BmCost::Census)]))
@@ -287,16 +297,17 @@ impl Matcher {
             })
         };
         let max_memory = max_memory.map(|m| scaled(m, "max_memory", 1024)).transpose()?;
-        let max_pixels =
-            max_pixels.map(|m| scaled(m, "max_pixels", 1000)).transpose()?.unwrap_or(stereo_io::DEFAULT_MAX_PIXELS);
+        let max_pixels = max_pixels
+            .map(|m| scaled(m, "max_pixels", 1000))
+            .transpose()?
+            .unwrap_or(stereo_io::DEFAULT_MAX_PIXELS);
         let threads: Option<usize> = threads.map(|t| int_in("threads", t, 1, 4096)).transpose()?;
         let pool = match threads {
-            Some(n) => Some(Arc::new(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(n)
-                    .build()
-                    .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(format!("cannot start {n} threads: {e}")))?,
-            )),
+            Some(n) => {
+                Some(Arc::new(rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(|e| {
+                    pyo3::exceptions::PyRuntimeError::new_err(format!("cannot start {n} threads: {e}"))
+                })?))
+            }
             None => None,
         };
         Ok(Matcher {
@@ -345,7 +356,9 @@ impl Matcher {
         // a value, e.g. one that edge snapping moved).
         let fill = matches!(&self.matcher, stereo_pipeline::Matcher::Sgm(p) if p.fill);
         let filled = match &result.status {
-            Some(status) if fill => stereo_disparity::filled_mask(&result.disparity, status).view().map(|v| v != 0),
+            Some(status) if fill => {
+                stereo_disparity::filled_mask(&result.disparity, status).view().map(|v| v != 0)
+            }
             _ => Image::new(w, h, false),
         };
         let timings = PyDict::new(py);
@@ -457,7 +470,11 @@ impl Matcher {
                 "empty disparity range: min_disparity {} must be below the maximum {max}{} \
                  (the search is min <= d < max)",
                 self.min_disparity,
-                if self.max_disparity.is_some() { "" } else { " (the default for this width; set max_disparity)" }
+                if self.max_disparity.is_some() {
+                    ""
+                } else {
+                    " (the default for this width; set max_disparity)"
+                }
             ))
         })?;
         if range.count() > width {
@@ -568,12 +585,7 @@ pub struct DetailedResult {
 #[pymethods]
 impl DetailedResult {
     fn __repr__(&self, py: Python<'_>) -> String {
-        let shape = self
-            .disparity
-            .bind(py)
-            .getattr("shape")
-            .map(|s| s.to_string())
-            .unwrap_or_default();
+        let shape = self.disparity.bind(py).getattr("shape").map(|s| s.to_string()).unwrap_or_default();
         format!("DetailedResult(disparity {shape}, range {:?})", self.range)
     }
 }

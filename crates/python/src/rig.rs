@@ -53,7 +53,12 @@ fn disparity_arg(obj: &Bound<'_, PyAny>) -> PyResult<DisparityMap> {
 }
 
 impl Rig {
-    fn limited(&self, disparity: &mut DisparityMap, min_depth: Option<f64>, max_depth: Option<f64>) -> PyResult<()> {
+    fn limited(
+        &self,
+        disparity: &mut DisparityMap,
+        min_depth: Option<f64>,
+        max_depth: Option<f64>,
+    ) -> PyResult<()> {
         if let Some(limits) = DepthLimits::new(min_depth, max_depth).map_err(errors::pipeline)? {
             limits.apply(disparity, &self.rig);
         }
@@ -78,7 +83,9 @@ impl Rig {
             (Some(f), Some(p), None) => stereo_triangulation::Rig::from_datasheet(baseline_mm, f, p),
             (None, _, Some(px)) => stereo_triangulation::Rig::from_focal_px(baseline_mm, px),
             (Some(_), _, Some(_)) => {
-                return Err(value_error("conflicting focal lengths: give focal_mm with pixel_um, or focal_px"))
+                return Err(value_error(
+                    "conflicting focal lengths: give focal_mm with pixel_um, or focal_px",
+                ))
             }
             (Some(_), None, None) => return Err(value_error("focal_mm needs pixel_um (or give focal_px)")),
             (None, _, None) => {
@@ -196,7 +203,8 @@ impl Rig {
         for p in &points {
             xyz.extend([p.position.x as f32, p.position.y as f32, p.position.z as f32]);
         }
-        let xyz = PyArray2::from_owned_array(py, Array2::from_shape_vec((points.len(), 3), xyz).expect("N x 3"));
+        let xyz =
+            PyArray2::from_owned_array(py, Array2::from_shape_vec((points.len(), 3), xyz).expect("N x 3"));
         let Some(colors) = colors else { return Ok(xyz.into_any()) };
         let c = colors.as_array();
         let (w, h) = disparity.size();
@@ -210,7 +218,8 @@ impl Rig {
         for p in &points {
             rgb.extend([c[[p.y, p.x, 0]], c[[p.y, p.x, 1]], c[[p.y, p.x, 2]]]);
         }
-        let rgb = PyArray2::from_owned_array(py, Array2::from_shape_vec((points.len(), 3), rgb).expect("N x 3"));
+        let rgb =
+            PyArray2::from_owned_array(py, Array2::from_shape_vec((points.len(), 3), rgb).expect("N x 3"));
         Ok(PyTuple::new(py, [xyz.into_any(), rgb.into_any()])?.into_any())
     }
 
