@@ -3,7 +3,7 @@
 //! options give the same disparity, bit for bit.
 //!
 //! Built with maturin (`pip install ./crates/python`); see `docs/python.md`. Errors are Python
-//! exceptions carrying the library's one-line message (see [`errors`]); the matching itself runs
+//! exceptions carrying the library's one-line message (see `errors.rs`); the matching itself runs
 //! with the GIL released.
 
 use pyo3::prelude::*;
