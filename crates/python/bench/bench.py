@@ -39,20 +39,26 @@ m = sd.Matcher(max_disparity=MAX)
 
 def python_medians():
     m.compute(left, right)  # warm up
-    wall, inner = [], []
+    wall, inner, binding = [], [], []
     for _ in range(runs):
         t = time.perf_counter()
         m.compute(left, right)
         wall.append((time.perf_counter() - t) * 1000)
-        inner.append(m.compute_detailed(left, right).timings_ms["total"])
-    return statistics.median(wall), statistics.median(inner)
+        t = time.perf_counter()
+        res = m.compute_detailed(left, right)
+        total = (time.perf_counter() - t) * 1000
+        inner.append(res.timings_ms["total"])
+        # Per call: everything outside the library's run (argument checks, views, GIL, output).
+        binding.append(total - res.timings_ms["total"])
+    return statistics.median(wall), statistics.median(inner), statistics.median(binding)
 
 
 print(f"pair {W}x{H} ({W * H / 1e6:.2f} MP), max_disparity {MAX}, {runs} runs per median")
 rows = []
 for round_ in range(3):
-    py_wall, py_inner = python_medians()
-    line = f"round {round_ + 1}: python compute {py_wall:.1f} ms (library part {py_inner:.1f} ms)"
+    py_wall, py_inner, py_binding = python_medians()
+    line = (f"round {round_ + 1}: python compute {py_wall:.1f} ms (library part {py_inner:.1f} ms, "
+            f"binding {py_binding:.2f} ms per call)")
     if rust:
         out = subprocess.run([rust, tmp / "l.png", tmp / "r.png", str(MAX), str(runs)], capture_output=True, text=True,
                              check=True)
