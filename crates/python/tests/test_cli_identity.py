@@ -19,6 +19,11 @@ OPTIONS = [
     (dict(matcher="bm", max_disparity=64), ["--matcher", "bm", "--max-disparity", "64"]),
     (dict(matcher="bm", max_disparity=64, block_size=7, bm_cost="sad"),
      ["--matcher", "bm", "--max-disparity", "64", "--block-size", "7", "--bm-cost", "sad"]),
+    (dict(max_disparity=64, single_pass=True, speckle_size=100, edge_snap=0),
+     ["--max-disparity", "64", "--single-pass", "--speckle-size", "100", "--edge-snap", "0"]),
+    (dict(max_disparity=64, align=False, paths=4, p2=120, lr_max_diff=2, fill=True),
+     ["--max-disparity", "64", "--no-align", "--paths", "4", "--p2", "120", "--lr-max-diff", "2", "--fill"]),
+    (dict(max_disparity=64, max_memory="8M"), ["--max-disparity", "64", "--max-memory", "8M"]),
     (dict(), []),
 ]
 
@@ -48,7 +53,7 @@ def test_slanted_matches_cli(cli, tmp_path, kwargs, flags):
 
 
 @pytest.mark.parametrize("colour", [False, True], ids=["grey", "rgb"])
-@pytest.mark.parametrize("kwargs,flags", OPTIONS[:3] + OPTIONS[6:7], ids=["sgm", "fill", "fast", "bm"])
+@pytest.mark.parametrize("kwargs,flags", OPTIONS[:3] + OPTIONS[6:7] + OPTIONS[9:10], ids=["sgm", "fill", "fast", "bm", "single-pass"])
 def test_generated_scene_matches_cli(cli, tmp_path, colour, kwargs, flags):
     left, right = scene(colour=colour)
     write_png(tmp_path / "l.png", left)
