@@ -7,6 +7,7 @@
 
     cargo build --release --example time_pipeline
     python crates/python/bench/bench.py target/release/examples/time_pipeline [RUNS]
+    python crates/python/bench/bench.py threads [RUNS]      # the thread measurement alone
 """
 
 import json
@@ -26,6 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from conftest import scene, write_png  # noqa: E402
 
 rust = sys.argv[1] if len(sys.argv) > 1 else None
+threads_only = rust == "threads"
 runs = int(sys.argv[2]) if len(sys.argv) > 2 else 9
 W, H, MAX = 1152, 868, 128  # 1.0 megapixel
 
@@ -55,7 +57,7 @@ def python_medians():
 
 print(f"pair {W}x{H} ({W * H / 1e6:.2f} MP), max_disparity {MAX}, {runs} runs per median")
 rows = []
-for round_ in range(3):
+for round_ in range(0 if threads_only else 3):
     py_wall, py_inner, py_binding = python_medians()
     line = (f"round {round_ + 1}: python compute {py_wall:.1f} ms (library part {py_inner:.1f} ms, "
             f"binding {py_binding:.2f} ms per call)")
