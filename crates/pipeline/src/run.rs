@@ -40,6 +40,9 @@ pub struct DepthResult {
     pub disparity: DisparityMap,
     /// SGM's per-pixel confidence (0–1), when asked for.
     pub confidence: Option<Image<f32>>,
+    /// SGM's per-pixel [`stereo_disparity::PixelStatus`] codes (0 = matched): with
+    /// [`stereo_disparity::filled_mask`], which pixels a dense fill invented.
+    pub status: Option<Image<u8>>,
     /// Depth along the optical axis (metres), with a rig.
     pub depth: Option<Image<f32>>,
     /// What SGM measured of the pair and adapted its cost to.
@@ -82,10 +85,10 @@ impl Plan {
         let rectification_time = t.elapsed();
 
         let t = Instant::now();
-        let (mut disparity, confidence, adaptation) = match &params.matcher {
+        let (mut disparity, confidence, adaptation, status) = match &params.matcher {
             Matcher::Sgm(sgm) => {
                 let out = sgm_detailed(left, &right, sgm)?;
-                let (mut disparity, confidence) = (out.disparity, out.confidence);
+                let (mut disparity, confidence, status) = (out.disparity, out.confidence, out.status);
                 if let (Some(t), Some(c)) = (params.min_confidence, &confidence) {
                     for (d, &c) in disparity.as_mut_slice().iter_mut().zip(c.as_slice()) {
                         if c < t {
@@ -93,9 +96,9 @@ impl Plan {
                         }
                     }
                 }
-                (disparity, confidence, Some(out.adaptation))
+                (disparity, confidence, Some(out.adaptation), Some(status))
             }
-            Matcher::Bm(bm) => (block_match(left, &right, bm)?, None, None),
+            Matcher::Bm(bm) => (block_match(left, &right, bm)?, None, None, None),
         };
         let matching = t.elapsed();
         drop(right);
@@ -111,6 +114,7 @@ impl Plan {
         Ok(DepthResult {
             disparity,
             confidence,
+            status,
             depth,
             adaptation,
             rectification,

@@ -1,0 +1,145 @@
+"""Arrays of every supported layout and type give the result of the contiguous grey array."""
+
+import threading
+
+import numpy as np
+import pytest
+
+import stereo_depth as sd
+from conftest import DATA, scene
+
+
+@pytest.fixture(scope="module")
+def pair():
+    return scene(width=192, height=128, disparity=8)
+
+
+@pytest.fixture(scope="module")
+def matcher():
+    return sd.Matcher(max_disparity=32)
+
+
+def same(a, b):
+    assert np.array_equal(a, b, equal_nan=True)
+
+
+def test_strided_views_are_read_in_place(pair, matcher):
+    left, right = pair
+    # Padded rows: a crop of a wider buffer is read in place and equals the cropped copy.
+    wide_l = np.zeros((128, 256), np.uint8)
+    wide_r = np.zeros((128, 256), np.uint8)
+    wide_l[:, 10:202], wide_r[:, 10:202] = left, right
+    view_l, view_r = wide_l[:, 10:202], wide_r[:, 10:202]
+    assert not view_l.flags.c_contiguous
+    res = matcher.compute_detailed(view_l, view_r)
+    assert res.copied == (False, False)
+    same(res.disparity, matcher.compute(left, right))
+
+
+@pytest.mark.parametrize("layout", ["fortran", "reversed", "column-strided"])
+def test_other_layouts_are_copied(pair, matcher, layout):
+    left, right = pair
+    if layout == "fortran":
+        l, r = np.asfortranarray(left), np.asfortranarray(right)
+        expected = matcher.compute(left, right)
+    elif layout == "reversed":
+        l, r = left[::-1], right[::-1]
+        expected = matcher.compute(np.ascontiguousarray(l), np.ascontiguousarray(r))
+    else:
+        big_l, big_r = np.repeat(left, 2, axis=1), np.repeat(right, 2, axis=1)
+        l, r = big_l[:, ::2], big_r[:, ::2]
+        expected = matcher.compute(left, right)
+    res = matcher.compute_detailed(l, r)
+    assert res.copied == (True, True)
+    same(res.disparity, expected)
+
+
+def test_colour_and_16_bit_convert_like_files(pair, matcher):
+    left, right = pair
+    expected = matcher.compute(left, right)
+    # 8-bit values are scaled by 257 to the working 16 bits.
+    same(matcher.compute(left.astype(np.uint16) * 257, right.astype(np.uint16) * 257), expected)
+    # Equal channels: luma is the grey value; alpha is ignored.
+    rgb_l, rgb_r = np.stack([left] * 3, -1), np.stack([right] * 3, -1)
+    same(matcher.compute(rgb_l, rgb_r), expected)
+    rgba_l = np.concatenate([rgb_l, np.full(left.shape + (1,), 7, np.uint8)], -1)
+    rgba_r = np.concatenate([rgb_r, np.full(left.shape + (1,), 200, np.uint8)], -1)
+    same(matcher.compute(rgba_l, rgba_r), expected)
+    # A view of the RGB channels of an RGBA buffer is read in place.
+    res = matcher.compute_detailed(rgba_l[..., :3], rgba_r[..., :3])
+    same(res.disparity, expected)
+    # Mixed inputs: a grey array on the left, a colour one on the right.
+    same(matcher.compute(left, rgb_r), expected)
+
+
+def test_paths_and_pathlike():
+    m = sd.Matcher(max_disparity=64)
+    left, right = DATA / "slanted" / "left.png", DATA / "slanted" / "right.png"
+    same(m.compute(left, right), m.compute(str(left), str(right)))
+    same(m.compute(left, sd.read_image(right)), m.compute(left, right))
+
+
+def test_compute_detailed(pair):
+    left, right = pair
+    m = sd.Matcher(max_disparity=32, fill=True, confidence=True)
+    res = m.compute_detailed(left, right)
+    assert res.disparity.dtype == np.float32 and res.disparity.shape == left.shape
+    assert res.confidence.dtype == np.float32 and res.confidence.shape == left.shape
+    assert res.filled.dtype == np.bool_ and res.filled.any()
+    assert not np.isnan(res.disparity).any()  # dense
+    assert (res.confidence[res.filled] == 0).all()
+    assert set(res.timings_ms) >= {"convert", "rectification", "match", "total"}
+    assert res.range == (0, 32)
+    assert res.rectification["verdict"] == "aligned"
+    same(res.disparity, m.compute(left, right))
+    # Without fill nothing is filled; BM has no confidence.
+    assert not sd.Matcher(max_disparity=32).compute_detailed(left, right).filled.any()
+    bm = sd.Matcher(matcher="bm", max_disparity=32).compute_detailed(left, right)
+    assert bm.confidence is None and bm.adaptation is None
+
+
+def test_default_range_is_a_quarter_of_the_width(pair):
+    left, right = pair
+    assert sd.Matcher().compute_detailed(left, right).range == (0, 48)  # 192 / 4
+
+
+def test_threads_option_gives_the_same_result(pair):
+    left, right = pair
+    same(sd.Matcher(max_disparity=32, threads=1).compute(left, right), sd.Matcher(max_disparity=32).compute(left, right))
+
+
+def test_a_matcher_is_shared_between_threads(pair, matcher):
+    left, right = pair
+    expected = matcher.compute(left, right)
+    results = [None] * 4
+
+    def work(i):
+        results[i] = matcher.compute(left, right)
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for r in results:
+        same(r, expected)
+
+
+def test_help_lists_every_option_with_its_default():
+    text = sd.Matcher.__doc__
+    for option in ["min_disparity", "max_disparity", "matcher", "preset", "fill", "speckle_size", "edge_snap",
+                   "confidence", "min_confidence", "single_pass", "paths", "p1", "p2", "uniqueness",
+                   "lr_max_diff", "lr_check", "subpixel", "block_size", "bm_cost", "align", "max_memory",
+                   "max_pixels", "threads"]:
+        assert f"``{option}`` [" in text, option
+    # The defaults the docstring states are the library's.
+    p = sd.Matcher().params
+    assert (p["p1"], p["p2"], p["paths"], p["uniqueness"], p["lr_max_diff"], p["subpixel"], p["edge_snap"]) == (
+        20, 80, 8, 0, 3.0, "equiangular", 5)
+    assert "[None: 20]" in text and "[None: 80]" in text
+    b = sd.Matcher(matcher="bm").params
+    assert (b["block_size"], b["bm_cost"], b["uniqueness"], b["lr_max_diff"], b["subpixel"]) == (
+        11, "census", 10, 1.0, "parabola")
+    assert sd.Matcher(fill=True).params["speckle_size"] == 400
+    assert sd.Matcher(fill=True).params["lr_max_diff"] == 1.0
+    assert sd.Matcher(preset="fast").params["paths"] == 4
