@@ -16,12 +16,14 @@ map: a 32-bit float OpenEXR file with one channel `Z` holding the depth in metre
 (Z = baseline * focal / ((d + doffs) * pixel)), NaN where no trustworthy disparity was found. \
 Every path written is printed on stdout as `WHAT: PATH` (depth, disparity, disparity-png, \
 depth-png, points, preview, stats). The rig is --baseline with --focal and --pixel, or with \
---focal-px, or a Middlebury --calib file. Without any rig flag only disparity outputs can be written \
+--focal-px, or a --calib file: a Middlebury calib.txt (rectified pair) or an OpenCV/ROS stereo \
+calibration (raw pair, rectified first). Without any rig flag only disparity outputs can be written \
 (--disparity, --disparity-png, --preview-of disparity, --stats with null depth fields).
 
 Examples:
   stereo-depth left.png right.png --baseline 80 --focal 12 --pixel 4
   stereo-depth im0.png im1.png --calib calib.txt --points cloud.ply --preview depth.png
+  stereo-depth raw_left.png raw_right.png --calib stereo.yaml
   stereo-depth left.png right.png --max-disparity 64 --disparity disp.pfm
   stereo-depth info cloud.ply
   stereo-depth left.png right.png --baseline 80 --focal 12 --pixel 4 --max-disparity 64 \\
@@ -222,7 +224,7 @@ pub struct PairArgs {
 }
 
 /// The rig flags, shared by the pair and batch commands. The rig is the baseline and the focal
-/// length in pixels: --focal with --pixel, or --focal-px, or a Middlebury --calib file.
+/// length in pixels: --focal with --pixel, or --focal-px, or a --calib file.
 #[derive(Debug, Args)]
 pub struct RigArgs {
     /// Distance between the two optical centres, in millimetres.

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use stereo_chart::Format as ChartFormat;
 use stereo_degrade::Degradation;
-use stereo_pipeline::{BmParams, DisparityRange, MatcherKind, Preset, SgmParams};
+use stereo_pipeline::{DisparityRange, MatcherOptions, OptionError};
 use stereo_triangulation::design::{Design, DesignError, DesignInput, Param, SensorWidth, TableSpec};
 use stereo_triangulation::Rig;
 
@@ -301,11 +301,6 @@ impl MatchSettings {
                 ));
             }
         }
-        if let Some(t) = args.min_confidence {
-            if !(0.0..=1.0).contains(&t) {
-                return Err(usage!("--min-confidence {t} must be between 0 and 1"));
-            }
-        }
         Ok(MatchSettings {
             min_disparity: args.min_disparity,
             max_disparity: args.max_disparity,
@@ -590,80 +585,37 @@ fn rig_error(err: stereo_triangulation::Error) -> UsageError {
     usage!("invalid {flag} {value} {unit} (must be {expected})")
 }
 
-fn lr_max_diff(args: &MatchArgs, default: Option<f32>) -> Result<Option<f32>, UsageError> {
-    if args.no_lr_check {
-        return Ok(None);
-    }
-    match args.lr_max_diff {
-        Some(diff) if !(diff.is_finite() && diff >= 0.0) => {
-            Err(usage!("--lr-max-diff must be a non-negative number of pixels, got {diff}"))
-        }
-        Some(diff) => Ok(Some(diff)),
-        None => Ok(default),
-    }
-}
-
-/// The matcher and its parameters; options of the other matcher are rejected, not ignored.
+/// The matcher and its parameters, resolved by the library ([`MatcherOptions::resolve`]) from
+/// the flags; its errors name the flags.
 fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
-    let reject = |given: bool, flag: &str, matcher: &str| {
-        if given {
-            Err(usage!("{flag} applies only to --matcher {matcher}"))
-        } else {
-            Ok(())
-        }
+    let options = MatcherOptions {
+        matcher: args.matcher,
+        preset: args.preset,
+        fill: args.fill,
+        speckle_size: args.speckle_size,
+        single_pass: args.single_pass,
+        paths: args.paths,
+        p1: args.p1,
+        p2: args.p2,
+        edge_snap: args.edge_snap,
+        confidence: args.confidence,
+        min_confidence: args.min_confidence,
+        uniqueness: args.uniqueness,
+        lr_max_diff: args.lr_max_diff,
+        lr_check: !args.no_lr_check,
+        subpixel: args.subpixel,
+        block_size: args.block_size,
+        bm_cost: args.bm_cost,
     };
-    match args.matcher {
-        MatcherKind::Sgm => {
-            reject(args.block_size.is_some(), "--block-size", "bm")?;
-            reject(args.bm_cost.is_some(), "--bm-cost", "bm")?;
-            let defaults = SgmParams::preset(args.preset);
-            let defaults = SgmParams {
-                speckle_size: args.speckle_size.unwrap_or(defaults.speckle_size),
-                single_pass: args.single_pass || defaults.single_pass,
-                ..defaults
-            };
-            let defaults = if args.fill { defaults.with_fill() } else { defaults };
-            let defaults =
-                SgmParams { confidence: args.confidence || args.min_confidence.is_some(), ..defaults };
-            let params = SgmParams {
-                paths: args.paths.unwrap_or(defaults.paths),
-                p1: args.p1.unwrap_or(defaults.p1),
-                p2: args.p2.unwrap_or(defaults.p2),
-                uniqueness_ratio: args.uniqueness.unwrap_or(defaults.uniqueness_ratio),
-                lr_max_diff: lr_max_diff(args, defaults.lr_max_diff)?,
-                subpixel: args.subpixel.unwrap_or(defaults.subpixel),
-                edge_snap_radius: args.edge_snap.unwrap_or(defaults.edge_snap_radius),
-                ..defaults
-            };
-            Ok(Matcher::Sgm(params))
-        }
-        MatcherKind::Bm => {
-            reject(args.paths.is_some(), "--paths", "sgm")?;
-            reject(args.p1.is_some(), "--p1", "sgm")?;
-            reject(args.p2.is_some(), "--p2", "sgm")?;
-            reject(args.preset != Preset::Balanced, "--preset", "sgm")?;
-            reject(args.fill, "--fill", "sgm")?;
-            reject(args.speckle_size.is_some(), "--speckle-size", "sgm")?;
-            reject(args.single_pass, "--single-pass", "sgm")?;
-            reject(args.edge_snap.is_some(), "--edge-snap", "sgm")?;
-            reject(args.confidence, "--confidence", "sgm")?;
-            reject(args.min_confidence.is_some(), "--min-confidence", "sgm")?;
-            let defaults = BmParams::default();
-            let block_size = args.block_size.unwrap_or(defaults.block_size);
-            if block_size < 3 || block_size % 2 == 0 {
-                return Err(usage!("--block-size must be odd and at least 3, got {block_size}"));
+    options.resolve().map_err(|err| {
+        let flag = |option: &str| format!("--{}", option.replace('_', "-"));
+        match err {
+            OptionError::OtherMatcher { option, matcher } => {
+                usage!("{} applies only to --matcher {matcher}", flag(option))
             }
-            let params = BmParams {
-                block_size,
-                cost: args.bm_cost.unwrap_or(defaults.cost),
-                uniqueness_ratio: args.uniqueness.unwrap_or(defaults.uniqueness_ratio),
-                lr_max_diff: lr_max_diff(args, defaults.lr_max_diff)?,
-                subpixel: args.subpixel.unwrap_or(defaults.subpixel),
-                ..defaults
-            };
-            Ok(Matcher::Bm(params))
+            OptionError::Invalid { option, message } => usage!("{} {message}", flag(option)),
         }
-    }
+    })
 }
 
 /// The batch command, checked (the folders are checked when it runs).
@@ -787,7 +739,7 @@ mod tests {
 
     use super::*;
     use crate::args::Cli;
-    use stereo_pipeline::{PathCount, Subpixel};
+    use stereo_pipeline::{BmParams, PathCount, SgmParams, Subpixel};
 
     fn pair(args: &[&str]) -> Result<PairConfig, UsageError> {
         let mut all = vec!["stereo-depth", "in/left.png", "in/right.png"];

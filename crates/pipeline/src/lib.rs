@@ -35,11 +35,13 @@
 
 mod depth_limits;
 mod matcher;
+mod options;
 mod plan;
 mod run;
 
 pub use depth_limits::DepthLimits;
 pub use matcher::{Matcher, MatcherKind};
+pub use options::{MatcherOptions, OptionError};
 pub use plan::{MemoryLimit, PipelineParams, Plan};
 pub use run::{DepthResult, Rectification, StageTimings};
 

@@ -116,3 +116,25 @@ fn depth_limits_cut_every_output_alike() {
     assert!(result.disparity.as_slice().iter().filter(|d| d.is_finite()).all(|&d| d >= 30.0));
     assert!(result.depth.unwrap().as_slice().iter().filter(|z| z.is_finite()).all(|&z| z as f64 <= near));
 }
+
+#[test]
+fn matcher_options_resolve_like_the_presets_and_reject_the_other_matchers_options() {
+    assert_eq!(MatcherOptions::default().resolve().unwrap(), Matcher::Sgm(SgmParams::default()));
+    let fast = MatcherOptions { preset: Preset::Fast, fill: true, p1: Some(9), ..MatcherOptions::default() };
+    let expected = SgmParams { p1: 9, ..SgmParams::preset(Preset::Fast).with_fill() };
+    assert_eq!(fast.resolve().unwrap(), Matcher::Sgm(expected));
+    let no_lr = MatcherOptions { lr_check: false, lr_max_diff: Some(-1.0), ..MatcherOptions::default() };
+    assert!(matches!(no_lr.resolve().unwrap(), Matcher::Sgm(p) if p.lr_max_diff.is_none()));
+
+    let bm = MatcherOptions { matcher: MatcherKind::Bm, ..MatcherOptions::default() };
+    assert_eq!(bm.resolve().unwrap(), Matcher::Bm(BmParams::default()));
+    let bm_fill = MatcherOptions { fill: true, ..bm.clone() };
+    assert_eq!(bm_fill.resolve().unwrap_err().to_string(), "fill applies only to matcher sgm");
+    let even = MatcherOptions { block_size: Some(8), ..bm };
+    assert_eq!(even.resolve().unwrap_err().to_string(), "block_size must be odd and at least 3, got 8");
+    let sgm_block = MatcherOptions { block_size: Some(9), ..MatcherOptions::default() };
+    assert_eq!(
+        sgm_block.resolve().unwrap_err(),
+        OptionError::OtherMatcher { option: "block_size", matcher: MatcherKind::Bm }
+    );
+}

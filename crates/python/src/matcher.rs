@@ -9,8 +9,10 @@ use numpy::ndarray::Array2;
 use numpy::PyArray2;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use stereo_disparity::{BmCost, BmParams, PathCount, Preset, SgmParams, Subpixel};
 use stereo_image::{DisparityRange, GrayImage, Image};
+use stereo_pipeline::{
+    parse_named, BmCost, MatcherKind, MatcherOptions, Named, OptionError, PathCount, Preset, Subpixel,
+};
 use stereo_pipeline::{DepthResult, MemoryLimit, PipelineParams, Plan};
 
 use crate::errors::{self, no_panic, value_error};
@@ -72,10 +74,10 @@ pub struct Matcher {
     pool: Option<Arc<rayon::ThreadPool>>,
 }
 
-fn choice<T: Copy>(what: &str, given: &str, options: &[(&str, T)]) -> PyResult<T> {
-    let lower = given.to_ascii_lowercase();
-    options.iter().find(|(name, _)| *name == lower).map(|(_, v)| *v).ok_or_else(|| {
-        let names: Vec<String> = options.iter().map(|(n, _)| format!("{n:?}")).collect();
+/// A library choice by its name (any case); the error lists the names.
+fn named<T: Named>(what: &str, given: &str) -> PyResult<T> {
+    parse_named::<T>(&given.to_ascii_lowercase()).map_err(|_| {
+        let names: Vec<String> = T::ALL.iter().map(|v| format!("{:?}", v.name())).collect();
         value_error(format!("invalid {what} {given:?} (want {})", names.join(", ")))
     })
 }
@@ -125,22 +127,6 @@ fn scaled(obj: &Bound<'_, PyAny>, what: &str, unit: u64) -> PyResult<u64> {
         return Err(value_error(format!("{what} must be greater than 0")));
     }
     Ok(value)
-}
-
-/// The options of the matcher not chosen must not be given (as on the command line).
-fn reject(given: bool, option: &str, matcher: &str) -> PyResult<()> {
-    if given {
-        return Err(value_error(format!("{option} applies only to matcher=\"{matcher}\"")));
-    }
-    Ok(())
-}
-
-fn subpixel_name(s: Subpixel) -> &'static str {
-    match s {
-        Subpixel::None => "none",
-        Subpixel::Parabola => "parabola",
-        Subpixel::Equiangular => "equiangular",
-    }
 }
 
 #[pymethods]
@@ -200,102 +186,48 @@ impl Matcher {
         if lr_max_diff.is_some() && !lr_check {
             return Err(value_error("lr_max_diff cannot be given with lr_check=False"));
         }
-        let lr = |default: Option<f32>| -> PyResult<Option<f32>> {
-            if !lr_check {
-                return Ok(None);
-            }
-            match lr_max_diff {
-                Some(d) if !(d.is_finite() && d >= 0.0) => {
-                    Err(value_error(format!("lr_max_diff must be a non-negative number of pixels, got {d}")))
-                }
-                Some(d) => Ok(Some(d as f32)),
-                None => Ok(default),
-            }
-        };
-        let subpixel = subpixel
-            .map(|s| {
-                choice(
-                    "subpixel",
-                    s,
-                    &[
-                        ("none", Subpixel::None),
-                        ("parabola", Subpixel::Parabola),
-                        ("equiangular", Subpixel::Equiangular),
-                    ],
-                )
-            })
-            .transpose()?;
+        let subpixel = subpixel.map(|s| named::<Subpixel>("subpixel", s)).transpose()?;
         let uniqueness: Option<u32> =
             uniqueness.map(|u| int_in("uniqueness", u, 0, u32::MAX as i64)).transpose()?;
-        let which = choice("matcher", matcher, &[("sgm", true), ("bm", false)])?;
-        let preset = choice(
-            "preset",
-            preset,
-            &[("fast", Preset::Fast), ("balanced", Preset::Balanced), ("accurate", Preset::Accurate)],
-        )?;
-        let matcher = if which {
-            reject(block_size.is_some(), "block_size", "bm")?;
-            reject(bm_cost.is_some(), "bm_cost", "bm")?;
-            let defaults = SgmParams::preset(preset);
-            let speckle: Option<usize> =
-                speckle_size.map(|s| int_in("speckle_size", s, 0, i64::MAX)).transpose()?;
-            let defaults = SgmParams {
-                speckle_size: speckle.unwrap_or(defaults.speckle_size),
-                single_pass: single_pass || defaults.single_pass,
-                ..defaults
-            };
-            let defaults = if fill { defaults.with_fill() } else { defaults };
-            let defaults = SgmParams { confidence: confidence || min_confidence.is_some(), ..defaults };
-            let paths = paths
-                .map(|p| match p {
-                    4 => Ok(PathCount::Four),
-                    8 => Ok(PathCount::Eight),
-                    _ => Err(value_error(format!("paths must be 4 or 8, got {p}"))),
-                })
-                .transpose()?;
-            let edge_snap: Option<usize> =
-                edge_snap.map(|e| int_in("edge_snap", e, 0, i64::MAX)).transpose()?;
-            stereo_pipeline::Matcher::Sgm(SgmParams {
-                paths: paths.unwrap_or(defaults.paths),
-                p1: p1.map(|p| int_in("p1", p, 0, u16::MAX as i64)).transpose()?.unwrap_or(defaults.p1),
-                p2: p2.map(|p| int_in("p2", p, 0, u16::MAX as i64)).transpose()?.unwrap_or(defaults.p2),
-                uniqueness_ratio: uniqueness.unwrap_or(defaults.uniqueness_ratio),
-                lr_max_diff: lr(defaults.lr_max_diff)?,
-                subpixel: subpixel.unwrap_or(defaults.subpixel),
-                edge_snap_radius: edge_snap.unwrap_or(defaults.edge_snap_radius),
-                ..defaults
+        let paths = paths
+            .map(|p| match p {
+                4 => Ok(PathCount::Four),
+                8 => Ok(PathCount::Eight),
+                _ => Err(value_error(format!("paths must be 4 or 8, got {p}"))),
             })
-        } else {
-            reject(paths.is_some(), "paths", "sgm")?;
-            reject(p1.is_some(), "p1", "sgm")?;
-            reject(p2.is_some(), "p2", "sgm")?;
-            reject(preset != Preset::Balanced, "preset", "sgm")?;
-            reject(fill, "fill", "sgm")?;
-            reject(speckle_size.is_some(), "speckle_size", "sgm")?;
-            reject(single_pass, "single_pass", "sgm")?;
-            reject(edge_snap.is_some(), "edge_snap", "sgm")?;
-            reject(confidence, "confidence", "sgm")?;
-            reject(min_confidence.is_some(), "min_confidence", "sgm")?;
-            let defaults = BmParams::default();
-            let block_size = match block_size {
-                None => defaults.block_size,
-                Some(b) if b >= 3 && b % 2 == 1 => b as usize,
-                Some(b) => {
-                    return Err(value_error(format!("block_size must be odd and at least 3, got {b}")))
-                }
-            };
-            let cost = bm_cost
-                .map(|c| choice("bm_cost", c, &[("sad", BmCost::Sad), ("census", BmCost::Census)]))
-                .transpose()?;
-            stereo_pipeline::Matcher::Bm(BmParams {
-                block_size,
-                cost: cost.unwrap_or(defaults.cost),
-                uniqueness_ratio: uniqueness.unwrap_or(defaults.uniqueness_ratio),
-                lr_max_diff: lr(defaults.lr_max_diff)?,
-                subpixel: subpixel.unwrap_or(defaults.subpixel),
-                ..defaults
-            })
+            .transpose()?;
+        let block_size = match block_size {
+            Some(b) if b < 3 || b % 2 == 0 => {
+                return Err(value_error(format!("block_size must be odd and at least 3, got {b}")))
+            }
+            b => b.map(|b| b as usize),
         };
+        // The same resolution as the command line's (stereo_pipeline::MatcherOptions).
+        let options = MatcherOptions {
+            matcher: named::<MatcherKind>("matcher", matcher)?,
+            preset: named::<Preset>("preset", preset)?,
+            fill,
+            speckle_size: speckle_size.map(|s| int_in("speckle_size", s, 0, i64::MAX)).transpose()?,
+            single_pass,
+            paths,
+            p1: p1.map(|p| int_in("p1", p, 0, u16::MAX as i64)).transpose()?,
+            p2: p2.map(|p| int_in("p2", p, 0, u16::MAX as i64)).transpose()?,
+            edge_snap: edge_snap.map(|e| int_in("edge_snap", e, 0, i64::MAX)).transpose()?,
+            confidence,
+            min_confidence: min_confidence.map(|t| t as f32),
+            uniqueness,
+            lr_max_diff: lr_max_diff.map(|d| d as f32),
+            lr_check,
+            subpixel,
+            block_size,
+            bm_cost: bm_cost.map(|c| named::<BmCost>("bm_cost", c)).transpose()?,
+        };
+        let matcher = options.resolve().map_err(|err| match err {
+            OptionError::OtherMatcher { option, matcher } => {
+                value_error(format!("{option} applies only to matcher=\"{matcher}\""))
+            }
+            OptionError::Invalid { option, message } => value_error(format!("{option} {message}")),
+        })?;
         let max_memory = max_memory.map(|m| scaled(m, "max_memory", 1024)).transpose()?;
         let max_pixels = max_pixels
             .map(|m| scaled(m, "max_pixels", 1000))
@@ -416,7 +348,7 @@ impl Matcher {
                 d.set_item("p2", p.p2)?;
                 d.set_item("uniqueness", p.uniqueness_ratio)?;
                 d.set_item("lr_max_diff", p.lr_max_diff)?;
-                d.set_item("subpixel", subpixel_name(p.subpixel))?;
+                d.set_item("subpixel", p.subpixel.name())?;
                 d.set_item("single_pass", p.single_pass)?;
                 d.set_item("fill", p.fill)?;
                 d.set_item("speckle_size", p.speckle_size)?;
@@ -429,10 +361,10 @@ impl Matcher {
             }
             stereo_pipeline::Matcher::Bm(p) => {
                 d.set_item("block_size", p.block_size)?;
-                d.set_item("bm_cost", if p.cost == BmCost::Sad { "sad" } else { "census" })?;
+                d.set_item("bm_cost", p.cost.name())?;
                 d.set_item("uniqueness", p.uniqueness_ratio)?;
                 d.set_item("lr_max_diff", p.lr_max_diff)?;
-                d.set_item("subpixel", subpixel_name(p.subpixel))?;
+                d.set_item("subpixel", p.subpixel.name())?;
             }
         }
         d.set_item("min_confidence", self.min_confidence)?;
