@@ -230,3 +230,70 @@ pub(crate) fn gaussian_blur(image: &GrayImage, sigma: f32) -> GrayImage {
     });
     GrayImage::from_vec(w, h, data).expect("same size")
 }
+
+/// The smallest ratio of the two views' [`sharpness`] read as one view being defocused: clean
+/// pairs measure 1.0–1.2 on the Middlebury scenes, a Gaussian blur σ 1.5 px in one view 3.8–10
+/// (docs/robustness.md).
+pub(crate) const MIN_SHARPNESS_RATIO: f64 = 2.0;
+
+/// How much of the estimated relative blur the sharper view receives: 0.8 left fewer bad pixels
+/// than 0.65 or 1.0 on blur σ 1.5 pairs (docs/robustness.md); a slightly sharper view keeps more
+/// of its texture for census.
+pub(crate) const MATCHED_BLUR_FRACTION: f32 = 0.8;
+
+/// Sharpness that no gain or bias changes: the mean squared gradient (forward differences) over
+/// the grey-level variance, away from a 6 px margin. 0 for a flat image.
+fn sharpness(image: &GrayImage) -> f64 {
+    let (w, h) = image.size();
+    let m = 6;
+    let (mut g, mut s, mut s2, mut n) = (0f64, 0f64, 0f64, 0f64);
+    for y in m..h.saturating_sub(m) {
+        let (row, below) = (image.row(y), image.row(y + 1));
+        for x in m..w.saturating_sub(m) {
+            let v = f64::from(row[x]);
+            let dx = f64::from(row[x + 1]) - v;
+            let dy = f64::from(below[x]) - v;
+            g += dx * dx + dy * dy;
+            s += v;
+            s2 += v * v;
+            n += 1.0;
+        }
+    }
+    if n < 100.0 {
+        return 0.0;
+    }
+    let var = s2 / n - (s / n).powi(2);
+    if var <= 0.0 {
+        0.0
+    } else {
+        g / n / var
+    }
+}
+
+/// A one-sided defocus: when one view's [`sharpness`] exceeds the other's by
+/// [`MIN_SHARPNESS_RATIO`] or more, which view is sharper (`true`: the left) and the Gaussian σ
+/// (px) that brings it to the other's sharpness, found by bisection on the centre crop (at most
+/// 384×288) of both views. Census then compares views of similar sharpness.
+pub(crate) fn relative_blur(left: &GrayImage, right: &GrayImage) -> Option<(bool, f32)> {
+    let (w, h) = left.size();
+    let (cw, ch) = (w.min(384), h.min(288));
+    let (x0, y0) = ((w - cw) / 2, (h - ch) / 2);
+    let crop = |image: &GrayImage| GrayImage::from_fn(cw, ch, |x, y| image.get(x0 + x, y0 + y));
+    let (l, r) = (crop(left), crop(right));
+    let (sl, sr) = (sharpness(&l), sharpness(&r));
+    if sl <= 0.0 || sr <= 0.0 || sl.max(sr) / sl.min(sr) < MIN_SHARPNESS_RATIO {
+        return None;
+    }
+    let (left_sharper, sharp, target) = if sl > sr { (true, &l, sr) } else { (false, &r, sl) };
+    // Sharpness falls monotonically with σ.
+    let (mut lo, mut hi) = (0.0f32, 4.0f32);
+    for _ in 0..7 {
+        let mid = 0.5 * (lo + hi);
+        if sharpness(&gaussian_blur(sharp, mid)) > target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Some((left_sharper, 0.5 * (lo + hi)))
+}
