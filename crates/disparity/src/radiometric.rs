@@ -313,7 +313,6 @@ pub(crate) fn relative_blur(left: &GrayImage, right: &GrayImage) -> Option<(bool
     Some((left_sharper, 0.5 * (lo + hi)))
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
