@@ -44,6 +44,10 @@ pub struct Adaptation {
     pub blockiness: Option<f32>,
     /// Whether census compared Gaussian-smoothed views (σ 1 px), for a high residual or JPEG blocks.
     pub census_smoothing: bool,
+    /// A one-sided defocus: `(left view is the sharper, σ px)` of the Gaussian blur the sharper
+    /// view received before census, instead of the σ 1 smoothing of both views; `None` when the
+    /// views are about equally sharp (or not measured).
+    pub sharper_view_blur: Option<(bool, f32)>,
     /// The penalties used: [`SgmParams::p1`] and [`SgmParams::p2`], raised for a noisy cost.
     pub p1: u16,
     pub p2: u16,

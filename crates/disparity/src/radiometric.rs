@@ -230,3 +230,111 @@ pub(crate) fn gaussian_blur(image: &GrayImage, sigma: f32) -> GrayImage {
     });
     GrayImage::from_vec(w, h, data).expect("same size")
 }
+
+/// The smallest ratio of the two views' [`sharpness`] read as one view being defocused: clean
+/// pairs measure 1.0–1.2 on the Middlebury scenes, a Gaussian blur σ 1.5 px in one view 3.8–10
+/// (docs/robustness.md).
+pub(crate) const MIN_SHARPNESS_RATIO: f64 = 2.0;
+
+/// How much of the estimated relative blur the sharper view receives: on blur σ 1.5 pairs of the
+/// seven scenes, 0.65 improved every scene's bad2 (default and `--fill`), 0.7–0.9 did not on
+/// cones' `--fill`, 1.0 not on tsukuba (docs/robustness.md); the still slightly sharper view keeps
+/// more texture for census.
+pub(crate) const MATCHED_BLUR_FRACTION: f32 = 0.65;
+
+/// Sharpness that no gain or bias changes: over `tiles`, the mean squared gradient (forward
+/// differences) over the mean within-tile grey-level variance, away from a 6 px margin of each
+/// tile (where a blur of the tile reads its replicated border). 0 for flat tiles.
+fn sharpness(tiles: &[GrayImage]) -> f64 {
+    let m = 6;
+    let (mut g, mut v2, mut n) = (0f64, 0f64, 0f64);
+    for image in tiles {
+        let (w, h) = image.size();
+        let (mut s, mut s2, mut k) = (0f64, 0f64, 0f64);
+        for y in m..h.saturating_sub(m) {
+            let (row, below) = (image.row(y), image.row(y + 1));
+            for x in m..w.saturating_sub(m) {
+                let v = f64::from(row[x]);
+                let dx = f64::from(row[x + 1]) - v;
+                let dy = f64::from(below[x]) - v;
+                g += dx * dx + dy * dy;
+                s += v;
+                s2 += v * v;
+                k += 1.0;
+            }
+        }
+        if k > 0.0 {
+            v2 += s2 - s * s / k;
+            n += k;
+        }
+    }
+    if n < 100.0 || v2 <= 0.0 {
+        0.0
+    } else {
+        g / v2
+    }
+}
+
+/// A one-sided defocus: when one view's [`sharpness`] exceeds the other's by
+/// [`MIN_SHARPNESS_RATIO`] or more, which view is sharper (`true`: the left) and the Gaussian σ
+/// (px) that brings it to the other's sharpness, found by bisection on a 3×3 grid of 80×80 px
+/// tiles of both views (the same tiles in both). Census then compares views of similar sharpness.
+pub(crate) fn relative_blur(left: &GrayImage, right: &GrayImage) -> Option<(bool, f32)> {
+    let (w, h) = left.size();
+    let t = 80.min(w / 3).min(h / 3);
+    if t < 24 {
+        return None;
+    }
+    let tiles = |image: &GrayImage| -> Vec<GrayImage> {
+        (0..9)
+            .map(|i| {
+                let (x0, y0) = ((i % 3) * (w - t) / 2, (i / 3) * (h - t) / 2);
+                GrayImage::from_fn(t, t, |x, y| image.get(x0 + x, y0 + y))
+            })
+            .collect()
+    };
+    let (l, r) = (tiles(left), tiles(right));
+    let (sl, sr) = (sharpness(&l), sharpness(&r));
+    if sl <= 0.0 || sr <= 0.0 || sl.max(sr) / sl.min(sr) < MIN_SHARPNESS_RATIO {
+        return None;
+    }
+    let (left_sharper, sharp, target) = if sl > sr { (true, &l, sr) } else { (false, &r, sl) };
+    // Sharpness falls monotonically with σ.
+    let (mut lo, mut hi) = (0.0f32, 4.0f32);
+    for _ in 0..6 {
+        let mid = 0.5 * (lo + hi);
+        let blurred: Vec<GrayImage> = sharp.iter().map(|tile| gaussian_blur(tile, mid)).collect();
+        if sharpness(&blurred) > target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Some((left_sharper, 0.5 * (lo + hi)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn texture(w: usize, h: usize) -> GrayImage {
+        GrayImage::from_fn(w, h, |x, y| {
+            let v = (x as u64).wrapping_mul(0x9E37_79B9) ^ (y as u64).wrapping_mul(0x85EB_CA6B);
+            ((v.wrapping_mul(0xC2B2_AE35) >> 20) & 0xff) as u16 * 257
+        })
+    }
+
+    #[test]
+    fn relative_blur_finds_the_defocused_view_and_its_sigma() {
+        let sharp = texture(300, 240);
+        let soft = gaussian_blur(&sharp, 1.5);
+        let (left_sharper, sigma) = relative_blur(&sharp, &soft).expect("one view is blurred");
+        assert!(left_sharper);
+        assert!((sigma - 1.5).abs() < 0.2, "{sigma}");
+        let (left_sharper, _) = relative_blur(&soft, &sharp).expect("one view is blurred");
+        assert!(!left_sharper);
+        // Equally sharp views, whatever their gain: nothing to match.
+        let brighter = GrayImage::from_fn(300, 240, |x, y| sharp.get(x, y) / 2 + 1000);
+        assert_eq!(relative_blur(&sharp, &brighter), None);
+    }
+}

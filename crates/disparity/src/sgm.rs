@@ -94,12 +94,23 @@ pub(crate) fn adapt_to_pair(
     // single noisy pixels then flip fewer bits, block edges fade, and the two views' sharpness is
     // closer (docs/robustness.md).
     let census_smoothing = smooths_census(residual, blockiness);
+    let mut sharper_view_blur = None;
     if census_smoothing {
+        // A one-sided defocus (no JPEG blocks, whose views are equally sharp): the sharper view is
+        // blurred to nearly match the other instead of both being smoothed (docs/robustness.md).
+        sharper_view_blur = (!blockiness.is_some_and(|b| b > CLEAN_BLOCKINESS))
+            .then(|| crate::radiometric::relative_blur(left, right))
+            .flatten()
+            .map(|(left_sharper, sigma)| (left_sharper, sigma * crate::radiometric::MATCHED_BLUR_FRACTION));
         let sigma = crate::radiometric::NOISY_CENSUS_SMOOTHING;
-        let (l, r) = rayon::join(
-            || crate::radiometric::gaussian_blur(left, sigma),
-            || crate::radiometric::gaussian_blur(right, sigma),
-        );
+        let (l, r) = match sharper_view_blur {
+            Some((true, s)) => (crate::radiometric::gaussian_blur(left, s), right.clone()),
+            Some((false, s)) => (left.clone(), crate::radiometric::gaussian_blur(right, s)),
+            None => rayon::join(
+                || crate::radiometric::gaussian_blur(left, sigma),
+                || crate::radiometric::gaussian_blur(right, sigma),
+            ),
+        };
         rayon::join(
             || census(&l, params.census, &mut census_left),
             || census(&r, params.census, &mut census_right),
@@ -113,6 +124,7 @@ pub(crate) fn adapt_to_pair(
         census_residual: residual,
         blockiness,
         census_smoothing,
+        sharper_view_blur,
         p1: adapted.p1,
         p2: adapted.p2,
     };
