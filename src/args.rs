@@ -409,38 +409,14 @@ pub struct MatchArgs {
     pub max_memory: Option<u64>,
 }
 
-/// `N` with an optional suffix (case-insensitive): `K`, `M`, `G`, `T` times `unit`, `unit`²...
-fn parse_scaled(text: &str, unit: u64, what: &str) -> Result<u64, String> {
-    let text = text.trim();
-    let (digits, power) = match text.char_indices().last() {
-        Some((i, c)) if c.is_ascii_alphabetic() => {
-            let power = match c.to_ascii_uppercase() {
-                'K' => 1,
-                'M' => 2,
-                'G' => 3,
-                'T' => 4,
-                _ => return Err(format!("unknown suffix {c:?} (want K, M, G or T)")),
-            };
-            (&text[..i], power)
-        }
-        _ => (text, 0),
-    };
-    let n: u64 = digits.parse().map_err(|_| format!("not a whole number of {what}: {text:?}"))?;
-    let value = unit.checked_pow(power).and_then(|scale| n.checked_mul(scale)).ok_or("too large")?;
-    if value == 0 {
-        return Err("must be greater than 0".into());
-    }
-    Ok(value)
-}
-
 /// `--max-pixels`: decimal suffixes (megapixels).
 pub fn parse_pixels(text: &str) -> Result<u64, String> {
-    parse_scaled(text, 1000, "pixels")
+    stereo_pipeline::parse_scaled(text, 1000, "pixels")
 }
 
 /// `--max-memory`: binary suffixes (`4G` = 4 GiB).
 pub fn parse_size(text: &str) -> Result<u64, String> {
-    parse_scaled(text, 1024, "bytes")
+    stereo_pipeline::parse_scaled(text, 1024, "bytes")
 }
 
 /// A clap parser for a library choice: its names, each with its help line, as possible values.

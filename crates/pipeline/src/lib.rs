@@ -38,12 +38,14 @@ mod matcher;
 mod options;
 mod plan;
 mod run;
+mod sizes;
 
 pub use depth_limits::DepthLimits;
 pub use matcher::{Matcher, MatcherKind};
 pub use options::{MatcherOptions, OptionError};
 pub use plan::{MemoryLimit, PipelineParams, Plan};
 pub use run::{DepthResult, Rectification, StageTimings};
+pub use sizes::parse_scaled;
 
 pub use stereo_disparity::{
     parse_named, Adaptation, BmCost, BmParams, DisparityRange, Named, PathCount, Preset, SgmParams, Subpixel,

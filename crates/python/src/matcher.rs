@@ -99,34 +99,9 @@ fn scaled(obj: &Bound<'_, PyAny>, what: &str, unit: u64) -> PyResult<u64> {
     }
     let text: String =
         obj.extract().map_err(|_| value_error(format!("{what} must be an int or a string like \"4G\"")))?;
-    let t = text.trim();
-    let (digits, power) = match t.char_indices().last() {
-        Some((i, c)) if c.is_ascii_alphabetic() => {
-            let power = match c.to_ascii_uppercase() {
-                'K' => 1,
-                'M' => 2,
-                'G' => 3,
-                'T' => 4,
-                _ => {
-                    return Err(value_error(format!(
-                        "invalid {what} {text:?}: unknown suffix {c:?} (want K, M, G or T)"
-                    )))
-                }
-            };
-            (&t[..i], power)
-        }
-        _ => (t, 0),
-    };
-    let n: u64 =
-        digits.parse().map_err(|_| value_error(format!("invalid {what} {text:?}: not a whole number")))?;
-    let value = unit
-        .checked_pow(power)
-        .and_then(|s| n.checked_mul(s))
-        .ok_or_else(|| value_error(format!("invalid {what} {text:?}: too large")))?;
-    if value == 0 {
-        return Err(value_error(format!("{what} must be greater than 0")));
-    }
-    Ok(value)
+    let units = if unit == 1024 { "bytes" } else { "pixels" };
+    stereo_pipeline::parse_scaled(&text, unit, units)
+        .map_err(|err| value_error(format!("invalid {what} {text:?}: {err}")))
 }
 
 #[pymethods]
