@@ -7,7 +7,7 @@ use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};
 use stereo_degrade::Degradation;
 use stereo_pipeline::{
-    parse_named, BmCost, BmParams, MatcherKind, Named, PathCount, Preset, SgmParams, Subpixel,
+    parse_named, BmCost, BmParams, MatcherKind, Named, PathCount, Preset, Search, SgmParams, Subpixel,
 };
 
 const AFTER_HELP: &str = "\
@@ -83,6 +83,7 @@ fn with_library_defaults(command: clap::Command) -> clap::Command {
     let lr = |diff: Option<f32>| diff.map_or("off".to_string(), |d| d.to_string());
     let defaults = [
         ("paths", sgm.paths.to_string()),
+        ("search", sgm.search.to_string()),
         ("p1", sgm.p1.to_string()),
         ("p2", sgm.p2.to_string()),
         ("uniqueness", format!("{} (sgm), {} (bm)", sgm.uniqueness_ratio, bm.uniqueness_ratio)),
@@ -354,6 +355,11 @@ pub struct MatchArgs {
     /// SGM: number of aggregation paths: 4 (horizontal and vertical) or 8 (also diagonals)
     #[arg(long, value_parser = named::<PathCount>(), help_heading = "Matching")]
     pub paths: Option<PathCount>,
+
+    /// SGM: search every pixel over the whole range (full), or coarse to fine around a
+    /// half-resolution match (hierarchical); auto: hierarchical for large ranges.
+    #[arg(long, value_parser = named::<Search>(), help_heading = "Matching")]
+    pub search: Option<Search>,
 
     /// SGM: penalty for a one-pixel disparity change along a path, in census bits.
     #[arg(long, value_name = "N", help_heading = "Matching")]

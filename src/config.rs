@@ -595,6 +595,7 @@ fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
         speckle_size: args.speckle_size,
         single_pass: args.single_pass,
         paths: args.paths,
+        search: args.search,
         p1: args.p1,
         p2: args.p2,
         edge_snap: args.edge_snap,

@@ -30,6 +30,7 @@ class Matcher:
         min_confidence: Optional[float] = None,
         single_pass: bool = False,
         paths: Optional[Literal[4, 8]] = None,
+        search: Optional[Literal["full", "hierarchical", "auto"]] = None,
         p1: Optional[int] = None,
         p2: Optional[int] = None,
         uniqueness: Optional[int] = None,

@@ -29,6 +29,7 @@ mod cost;
 mod far_islands;
 mod fill;
 mod filter;
+mod hierarchical;
 mod kernels;
 mod memory;
 mod names;
@@ -49,7 +50,7 @@ pub use bm::block_match;
 pub use fill::{fill_invalid, filled_mask};
 pub use filter::weighted_median;
 pub use names::{parse_named, Named};
-pub use post::{Adaptation, SgmOutput};
+pub use post::{Adaptation, SearchReport, SgmOutput};
 pub use sgm::{planned_memory_bytes, sgm, sgm_detailed};
 pub use speckle::remove_speckles;
 pub use status::PixelStatus;
@@ -101,6 +102,19 @@ pub enum PathCount {
     Four,
     /// Horizontal, vertical and both diagonals (Hirschmüller's recommended default).
     Eight,
+}
+
+/// How SGM searches the disparity range.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Search {
+    /// Every pixel over the whole range.
+    Full,
+    /// Coarse to fine (tSGM): a half-resolution match over the whole range, then each pixel only
+    /// in a band around the coarse result. Time and memory scale with the bands, not the range.
+    Hierarchical,
+    /// Hierarchical where it measured as accurate as the full search (large ranges), else full.
+    #[default]
+    Auto,
 }
 
 /// How the integer winner-takes-all disparity is refined below one pixel.
@@ -196,6 +210,10 @@ pub struct SgmParams {
     /// [`PathCount::Four`]), so no `W·H·D` volume is kept: `O(W·D)` memory per thread and
     /// about twice the speed, at some accuracy cost.
     pub single_pass: bool,
+    /// How the range is searched ([`Search::Auto`]: coarse to fine for large ranges). The
+    /// hierarchical search runs both aggregation passes over per-pixel bands; it ignores
+    /// [`SgmParams::single_pass`].
+    pub search: Search,
     /// Upper bound (bytes) on the working memory the matcher plans (see
     /// [`planned_memory_bytes`]): the two-pass aggregation then runs on horizontal strips short
     /// enough to fit. `None` uses the default plan (strips sized for speed, see
@@ -249,6 +267,7 @@ impl Default for SgmParams {
             subpixel: Subpixel::Equiangular,
             median: true,
             single_pass: false,
+            search: Search::Auto,
             max_memory: None,
             speckle_size: 0,
             speckle_max_diff: 1.0,

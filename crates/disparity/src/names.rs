@@ -4,7 +4,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use crate::{BmCost, Error, PathCount, Preset, Subpixel};
+use crate::{BmCost, Error, PathCount, Preset, Search, Subpixel};
 
 /// A choice among named values: its names, a line of help for each, parsing and printing.
 pub trait Named: Copy + Sized + 'static {
@@ -93,6 +93,12 @@ named!(Subpixel, "subpixel", [
     Equiangular => "equiangular", "two lines of equal and opposite slope (suits census/L1 costs)";
 ]);
 
+named!(Search, "search", [
+    Full => "full", "every pixel over the whole disparity range";
+    Hierarchical => "hierarchical", "coarse to fine: each pixel in a band around a half-resolution match";
+    Auto => "auto", "hierarchical for large disparity ranges, full otherwise (the default)";
+]);
+
 named!(BmCost, "block-matching cost", [
     Sad => "sad", "sum of absolute differences on an x-Sobel prefiltered image";
     Census => "census", "Hamming distances of 5x5 census strings; robust to gain and bias changes";
@@ -115,6 +121,7 @@ mod tests {
         round_trip::<PathCount>();
         round_trip::<Subpixel>();
         round_trip::<BmCost>();
+        round_trip::<Search>();
     }
 
     #[test]

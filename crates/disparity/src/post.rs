@@ -23,6 +23,20 @@ pub struct SgmOutput {
     pub confidence: Option<Image<f32>>,
     /// What the matcher measured of the pair and how it adapted ([`SgmParams::adapt_to_pair`]).
     pub adaptation: Adaptation,
+    /// Which search ran ([`SgmParams::search`]) and how much of the range it covered.
+    pub search: SearchReport,
+}
+
+/// Which search [`crate::sgm_detailed`] ran and how many disparities a pixel searched.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SearchReport {
+    /// Whether the coarse-to-fine search ran ([`crate::Search`]).
+    pub hierarchical: bool,
+    /// Half-resolution levels matched below the full resolution (0 for the full search).
+    pub levels: u32,
+    /// The mean number of disparities a full-resolution pixel searched (the range's size for the
+    /// full search).
+    pub mean_range: f32,
 }
 
 /// What [`crate::sgm_detailed`] measured of the pair before matching (a census-only match at a
@@ -135,5 +149,11 @@ pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params
             weighted_median(&disparity, left, params.wmf_radius, params.wmf_sigma_color, false)
         };
     }
-    SgmOutput { disparity, status, confidence: None, adaptation: Adaptation::default() }
+    SgmOutput {
+        disparity,
+        status,
+        confidence: None,
+        adaptation: Adaptation::default(),
+        search: SearchReport::default(),
+    }
 }

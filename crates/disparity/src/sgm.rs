@@ -5,11 +5,14 @@ use crate::buffer::ZeroedBuffer;
 use crate::census::census_transform;
 use crate::confidence::census_confidence;
 use crate::cost::infeasible_cost;
+use crate::hierarchical::{aggregate_bands, Bands};
 use crate::memory;
-use crate::post::{Adaptation, SgmOutput};
+use crate::post::{Adaptation, SearchReport, SgmOutput};
 use crate::radiometric::{blockiness, CoarseMatch};
 use crate::wta::Selection;
-use crate::{check_pair, DisparityMap, Error, GrayImage, Image, MatchingCost, SgmParams};
+use crate::{
+    check_pair, DisparityMap, DisparityRange, Error, GrayImage, Image, MatchingCost, Search, SgmParams,
+};
 
 /// Semi-Global Matching of a rectified pair (Hirschmüller 2008) with census or AD-census costs
 /// ([`SgmParams::matching_cost`]).
@@ -40,7 +43,7 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     let params = &adapted;
 
     memory::plan(width, height, params).check(width, height, params)?;
-    let disparity = aggregate_census(left, Some(right), &census_left, &census_right, params);
+    let (disparity, search) = match_census(left, right, &census_left, &census_right, params);
     let confidence = params.confidence.then(|| {
         let bits = (params.census.width * params.census.height - 1) as u32;
         census_confidence(&disparity, &census_left, &census_right, bits)
@@ -63,6 +66,7 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         output.confidence = Some(confidence);
     }
     output.adaptation = adaptation;
+    output.search = search;
     Ok(output)
 }
 
@@ -168,24 +172,101 @@ pub(crate) fn scaled_penalties(params: &SgmParams, scale: f32) -> SgmParams {
     SgmParams { p1: scale(params.p1), p2: scale(params.p2).min(MAX_P2), ..params.clone() }
 }
 
-/// Path aggregation (costs computed on the fly from the census images) and winner-takes-all
-/// with the checks, before post-processing. `right` supplies the intensity term of AD-census;
-/// without it the cost is census alone (the stage benchmark).
-pub(crate) fn aggregate_census(
+/// The smallest disparity range [`Search::Auto`] searches coarse to fine.
+pub(crate) const AUTO_HIERARCHICAL_MIN_DISPARITIES: usize = 128;
+
+/// Whether `params.search` asks for the coarse-to-fine search on a `width × height` pair.
+fn searches_hierarchically(width: usize, height: usize, params: &SgmParams) -> bool {
+    let wanted = match params.search {
+        Search::Full => false,
+        Search::Hierarchical => true,
+        Search::Auto => params.range.count() >= AUTO_HIERARCHICAL_MIN_DISPARITIES,
+    };
+    // The half-resolution pair must still hold a census window.
+    wanted && width / 2 >= params.census.width && height / 2 >= params.census.height
+}
+
+/// The match before post-processing: coarse to fine where [`searches_hierarchically`] says so
+/// (and it fits [`SgmParams::max_memory`]), else the full search.
+fn match_census(
     left: &GrayImage,
-    right: Option<&GrayImage>,
+    right: &GrayImage,
     census_left: &Image<u64>,
     census_right: &Image<u64>,
     params: &SgmParams,
-) -> DisparityMap {
+) -> (DisparityMap, SearchReport) {
     let (width, height) = left.size();
-    let nd = params.range.count();
-    let plan = memory::plan(width, height, params);
+    if searches_hierarchically(width, height, params) {
+        if let Some(found) = match_coarse_to_fine(left, right, census_left, census_right, params) {
+            return found;
+        }
+    }
+    let disparity = aggregate_census(left, Some(right), census_left, census_right, params);
+    (disparity, SearchReport { hierarchical: false, levels: 0, mean_range: params.range.count() as f32 })
+}
+
+/// The coarse-to-fine search ([`crate::hierarchical`]): the half-resolution pair matched over
+/// the halved range (itself coarse to fine while its range is large), then this level over the
+/// bands around it. `None` where the coarse level cannot be matched or the bands would not fit
+/// [`SgmParams::max_memory`].
+fn match_coarse_to_fine(
+    left: &GrayImage,
+    right: &GrayImage,
+    census_left: &Image<u64>,
+    census_right: &Image<u64>,
+    params: &SgmParams,
+) -> Option<(DisparityMap, SearchReport)> {
+    let (width, height) = left.size();
+    let range = params.range;
+    let coarse_range = DisparityRange {
+        min: range.min.div_euclid(2),
+        max: (range.max + 1).div_euclid(2).max(range.min.div_euclid(2) + 1),
+    };
+    let coarse_params = SgmParams {
+        range: coarse_range,
+        adapt_to_pair: false,
+        search: if params.search == Search::Full { Search::Full } else { Search::Auto },
+        fill: false,
+        speckle_size: params.speckle_size / 4,
+        edge_snap_passes: 0,
+        wmf_radius: 0,
+        confidence: false,
+        max_memory: None,
+        ..params.clone()
+    };
+    let (coarse_left, coarse_right) =
+        rayon::join(|| crate::radiometric::downsample(left, 2), || crate::radiometric::downsample(right, 2));
+    let coarse = sgm_detailed(&coarse_left, &coarse_right, &coarse_params).ok()?;
+    drop((coarse_left, coarse_right));
+    let bands = Bands::from_coarse(&coarse.disparity, width, height, range);
+    // The sums of the rows one pass finished before the other, at most the whole band volume.
+    if params.max_memory.is_some_and(|limit| 2 * bands.entries() + 24 * width * height > limit) {
+        return None;
+    }
+    let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
+    let inputs = aggregation_inputs(left, Some(right), census_left, census_right, params, &p2);
+    let disparity = aggregate_bands(&inputs, &bands, crate::kernels::features().level);
+    let report = SearchReport {
+        hierarchical: true,
+        levels: coarse.search.levels + 1,
+        mean_range: bands.mean_searched(range),
+    };
+    Some((disparity, report))
+}
+
+/// What the aggregation reads: the images, census images, cost and penalties of `params`.
+/// `right` supplies the intensity term of AD-census; without it the cost is census alone.
+pub(crate) fn aggregation_inputs<'a>(
+    left: &'a GrayImage,
+    right: Option<&'a GrayImage>,
+    census_left: &'a Image<u64>,
+    census_right: &'a Image<u64>,
+    params: &SgmParams,
+    p2: &'a P2Table,
+) -> Inputs<'a> {
     let matching_cost = if right.is_some() { params.matching_cost } else { MatchingCost::Census };
     let census_bits = (params.census.width * params.census.height - 1) as u32;
-    let mut disparity = DisparityMap::new(width, height, f32::NAN);
-    let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
-    let inputs = Inputs {
+    Inputs {
         image: left,
         census_left,
         census_right,
@@ -199,14 +280,32 @@ pub(crate) fn aggregate_census(
         worst: infeasible_cost(census_bits, matching_cost),
         paths: params.paths,
         p1: params.p1,
-        p2: &p2,
+        p2,
         selection: Selection {
             range: params.range,
             uniqueness_ratio: params.uniqueness_ratio,
             lr_max_diff: params.lr_max_diff,
             subpixel: params.subpixel,
         },
-    };
+    }
+}
+
+/// Path aggregation over the whole range (costs computed on the fly from the census images) and
+/// winner-takes-all with the checks, before post-processing. `right` supplies the intensity term
+/// of AD-census; without it the cost is census alone (the stage benchmark).
+pub(crate) fn aggregate_census(
+    left: &GrayImage,
+    right: Option<&GrayImage>,
+    census_left: &Image<u64>,
+    census_right: &Image<u64>,
+    params: &SgmParams,
+) -> DisparityMap {
+    let (width, height) = left.size();
+    let nd = params.range.count();
+    let plan = memory::plan(width, height, params);
+    let mut disparity = DisparityMap::new(width, height, f32::NAN);
+    let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
+    let inputs = aggregation_inputs(left, right, census_left, census_right, params, &p2);
     if params.single_pass {
         stream_and_select(&inputs, plan.stream_threads, plan.strips.overlap, disparity.as_mut_slice());
     } else {

@@ -2,7 +2,7 @@
 //! to [`Matcher`] parameters in one place: the command line and the Python package both call
 //! [`MatcherOptions::resolve`], so the same options give the same parameters everywhere.
 
-use stereo_disparity::{BmCost, BmParams, PathCount, Preset, SgmParams, Subpixel};
+use stereo_disparity::{BmCost, BmParams, PathCount, Preset, Search, SgmParams, Subpixel};
 
 use crate::{Matcher, MatcherKind};
 
@@ -19,6 +19,8 @@ pub struct MatcherOptions {
     pub speckle_size: Option<usize>,
     pub single_pass: bool,
     pub paths: Option<PathCount>,
+    /// SGM: the full or the coarse-to-fine search ([`Search`]).
+    pub search: Option<Search>,
     pub p1: Option<u16>,
     pub p2: Option<u16>,
     pub edge_snap: Option<usize>,
@@ -58,6 +60,7 @@ impl Default for MatcherOptions {
             speckle_size: None,
             single_pass: false,
             paths: None,
+            search: None,
             p1: None,
             p2: None,
             edge_snap: None,
@@ -102,6 +105,7 @@ impl MatcherOptions {
                     SgmParams { confidence: self.confidence || self.min_confidence.is_some(), ..defaults };
                 Ok(Matcher::Sgm(SgmParams {
                     paths: self.paths.unwrap_or(defaults.paths),
+                    search: self.search.unwrap_or(defaults.search),
                     p1: self.p1.unwrap_or(defaults.p1),
                     p2: self.p2.unwrap_or(defaults.p2),
                     uniqueness_ratio: self.uniqueness.unwrap_or(defaults.uniqueness_ratio),
@@ -114,6 +118,7 @@ impl MatcherOptions {
             MatcherKind::Bm => {
                 let sgm = MatcherKind::Sgm;
                 reject(self.paths.is_some(), "paths", sgm)?;
+                reject(self.search.is_some(), "search", sgm)?;
                 reject(self.p1.is_some(), "p1", sgm)?;
                 reject(self.p2.is_some(), "p2", sgm)?;
                 reject(self.preset != Preset::Balanced, "preset", sgm)?;

@@ -11,7 +11,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use stereo_image::{DisparityRange, GrayImage, Image};
 use stereo_pipeline::{
-    parse_named, BmCost, MatcherKind, MatcherOptions, Named, OptionError, PathCount, Preset, Subpixel,
+    parse_named, BmCost, MatcherKind, MatcherOptions, Named, OptionError, PathCount, Preset, Search, Subpixel,
 };
 use stereo_pipeline::{DepthResult, MemoryLimit, PipelineParams, Plan};
 
@@ -42,6 +42,8 @@ use crate::input::{Input, View};
 /// - ``min_confidence`` [None]: SGM: invalidate pixels whose confidence is below this (0-1).
 /// - ``single_pass`` [False]: SGM: aggregate in one top-down pass (faster, less memory).
 /// - ``paths`` [None: 8, 4 with preset "fast"]: SGM aggregation paths, 4 or 8.
+/// - ``search`` [None: "auto"]: "full", "hierarchical" (coarse to fine) or "auto" (hierarchical
+///   for large disparity ranges).
 /// - ``p1`` [None: 20], ``p2`` [None: 80]: SGM penalties, in census bits.
 /// - ``uniqueness`` [None: 0 (sgm), 10 (bm)]: uniqueness margin, percent; 0 disables it.
 /// - ``lr_max_diff`` [None: 3 (sgm; 1 with fill), 1 (bm)]: left-right check tolerance, px.
@@ -110,7 +112,7 @@ impl Matcher {
     #[pyo3(signature = (
         *, min_disparity = 0, max_disparity = None, matcher = "sgm", preset = "balanced",
         fill = false, speckle_size = None, edge_snap = None, confidence = false,
-        min_confidence = None, single_pass = false, paths = None, p1 = None, p2 = None,
+        min_confidence = None, single_pass = false, paths = None, search = None, p1 = None, p2 = None,
         uniqueness = None, lr_max_diff = None, lr_check = true, subpixel = None,
         block_size = None, bm_cost = None, align = true, max_memory = None, max_pixels = None,
         threads = None
@@ -128,6 +130,7 @@ impl Matcher {
         min_confidence: Option<f64>,
         single_pass: bool,
         paths: Option<i64>,
+        search: Option<&str>,
         p1: Option<i64>,
         p2: Option<i64>,
         uniqueness: Option<i64>,
@@ -185,6 +188,7 @@ impl Matcher {
             speckle_size: speckle_size.map(|s| int_in("speckle_size", s, 0, i64::MAX)).transpose()?,
             single_pass,
             paths,
+            search: search.map(|s| named::<Search>("search", s)).transpose()?,
             p1: p1.map(|p| int_in("p1", p, 0, u16::MAX as i64)).transpose()?,
             p2: p2.map(|p| int_in("p2", p, 0, u16::MAX as i64)).transpose()?,
             edge_snap: edge_snap.map(|e| int_in("edge_snap", e, 0, i64::MAX)).transpose()?,
@@ -325,6 +329,7 @@ impl Matcher {
                 d.set_item("lr_max_diff", p.lr_max_diff)?;
                 d.set_item("subpixel", p.subpixel.name())?;
                 d.set_item("single_pass", p.single_pass)?;
+                d.set_item("search", p.search.name())?;
                 d.set_item("fill", p.fill)?;
                 d.set_item("speckle_size", p.speckle_size)?;
                 d.set_item("edge_snap", p.edge_snap_radius)?;
