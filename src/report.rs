@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use serde::Serialize;
-use stereo_pipeline::{Adaptation, Named, PathCount};
+use stereo_pipeline::{Adaptation, Named, PathCount, SearchReport};
 use stereo_triangulation::{DepthStats, DisparityStats};
 
 use crate::checks::DepthLimitsReport;
@@ -104,7 +104,7 @@ impl Stats {
                 .and_then(|s| DepthResolution::new(&s.rig, depth_m.as_ref())),
             depth_m,
             disparity_px: Summary::of_disparity(&disparity_stats),
-            matcher: MatcherReport::new(plan.matcher(), result.adaptation.as_ref()),
+            matcher: MatcherReport::new(plan.matcher(), result.adaptation.as_ref(), result.search.as_ref()),
             rig: config.rig.as_ref().map(|setup| RigReport::new(setup, width, height)),
             points_written: counts.points_written,
             depth_png_too_deep: counts.depth_png_too_deep,
@@ -199,6 +199,12 @@ pub enum MatcherReport {
         fill: bool,
         /// What the matcher measured of the pair and adapted to (`null` when not measured).
         adaptation: Option<AdaptationReport>,
+        /// Which search ran: `full`, or `hierarchical` (coarse to fine, `--search`).
+        search: &'static str,
+        /// Half-resolution levels matched below the full one (0 for the full search).
+        search_levels: u32,
+        /// The mean number of disparities a pixel searched (`num_disparities` for the full search).
+        mean_disparities_searched: f32,
     },
     Bm {
         min_disparity: i32,
@@ -297,7 +303,7 @@ pub fn ms(duration: Duration) -> f64 {
 }
 
 impl MatcherReport {
-    pub fn new(matcher: &Matcher, adaptation: Option<&Adaptation>) -> Self {
+    pub fn new(matcher: &Matcher, adaptation: Option<&Adaptation>, search: Option<&SearchReport>) -> Self {
         match matcher {
             Matcher::Sgm(p) => MatcherReport::Sgm {
                 min_disparity: p.range.min,
@@ -331,6 +337,9 @@ impl MatcherReport {
                     p1_used: a.p1,
                     p2_used: a.p2,
                 }),
+                search: if search.is_some_and(|s| s.hierarchical) { "hierarchical" } else { "full" },
+                search_levels: search.map_or(0, |s| s.levels),
+                mean_disparities_searched: search.map_or(p.range.count() as f32, |s| s.mean_range),
             },
             Matcher::Bm(p) => MatcherReport::Bm {
                 min_disparity: p.range.min,
@@ -461,6 +470,20 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
         let penalties =
             if a.census_smoothing { format!("{penalties}, census on smoothed views") } else { penalties };
         writeln!(out, "cost          {cost}, {penalties}")?;
+    }
+    if let MatcherReport::Sgm {
+        search: "hierarchical",
+        search_levels,
+        mean_disparities_searched,
+        num_disparities,
+        ..
+    } = &stats.matcher
+    {
+        writeln!(
+            out,
+            "search        coarse to fine ({search_levels} half-resolution level{}), {mean_disparities_searched:.0} of {num_disparities} disparities per pixel",
+            if *search_levels == 1 { "" } else { "s" }
+        )?;
     }
     let t = &stats.timings_ms;
     writeln!(

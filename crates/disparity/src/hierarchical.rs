@@ -17,8 +17,11 @@
 use std::ops::Range;
 use std::sync::Mutex;
 
+use rayon::prelude::*;
+
 use crate::aggregate::Inputs;
 use crate::cost::{AdRows, BtRow};
+use crate::kernels::layout::BandRow;
 use crate::kernels::layout::{padded_lanes, PathIn, PAD};
 use crate::kernels::{self, Features, Level};
 use crate::status::{tagged_nan, PixelStatus};
@@ -52,6 +55,7 @@ impl Bands {
     }
 
     /// Bands around `coarse`, a disparity map of the pair at half resolution (NaN where invalid).
+    /// Every fine pixel of a coarse pixel gets that coarse pixel's band.
     pub(crate) fn from_coarse(
         coarse: &DisparityMap,
         width: usize,
@@ -60,8 +64,14 @@ impl Bands {
     ) -> Self {
         let (cw, ch) = coarse.size();
         let full = padded_lanes(range.count());
-        let mut offset = Vec::with_capacity(width * height);
-        let mut lanes = Vec::with_capacity(width * height);
+        if cw == 0 || ch == 0 {
+            return Bands {
+                width,
+                height,
+                offset: vec![range.min; width * height],
+                lanes: vec![full as u16; width * height],
+            };
+        }
         // Span of the valid coarse disparities within `r` coarse pixels of (cx, cy).
         let span = |cx: usize, cy: usize, r: usize| -> Option<(f32, f32)> {
             let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
@@ -75,25 +85,34 @@ impl Bands {
             }
             (lo <= hi).then_some((lo, hi))
         };
+        let coarse_bands: Vec<(i32, u16)> = (0..ch)
+            .into_par_iter()
+            .flat_map_iter(|cy| {
+                (0..cw).map(move |cx| {
+                    let wanted = match span(cx, cy, 1) {
+                        Some((lo, hi)) => {
+                            Some(((2.0 * lo).floor() as i32 - MARGIN, (2.0 * hi).ceil() as i32 + MARGIN))
+                        }
+                        None => span(cx, cy, 3).map(|(lo, hi)| {
+                            ((2.0 * lo).floor() as i32 - 2 * MARGIN, (2.0 * hi).ceil() as i32 + 2 * MARGIN)
+                        }),
+                    };
+                    let (o, n) = match wanted {
+                        Some((lo, hi)) => band(lo, hi, range, full),
+                        None => (range.min, full),
+                    };
+                    (o, n as u16)
+                })
+            })
+            .collect();
+        let mut offset = Vec::with_capacity(width * height);
+        let mut lanes = Vec::with_capacity(width * height);
         for y in 0..height {
-            let cy = (y / 2).min(ch.saturating_sub(1));
+            let row = &coarse_bands[(y / 2).min(ch - 1) * cw..][..cw];
             for x in 0..width {
-                let cx = (x / 2).min(cw.saturating_sub(1));
-                let wanted = if cw == 0 || ch == 0 {
-                    None
-                } else if let Some((lo, hi)) = span(cx, cy, 1) {
-                    Some(((2.0 * lo).floor() as i32 - MARGIN, (2.0 * hi).ceil() as i32 + MARGIN))
-                } else {
-                    span(cx, cy, 3).map(|(lo, hi)| {
-                        ((2.0 * lo).floor() as i32 - 2 * MARGIN, (2.0 * hi).ceil() as i32 + 2 * MARGIN)
-                    })
-                };
-                let (o, n) = match wanted {
-                    Some((lo, hi)) => band(lo, hi, range, full),
-                    None => (range.min, full),
-                };
+                let (o, n) = row[(x / 2).min(cw - 1)];
                 offset.push(o);
-                lanes.push(n as u16);
+                lanes.push(n);
             }
         }
         Bands { width, height, offset, lanes }
@@ -155,39 +174,73 @@ fn starts(lanes: &[u16], pad: usize, out: &mut Vec<usize>) {
 pub(crate) fn aggregate_bands(inputs: &Inputs<'_>, bands: &Bands, level: Level) -> DisparityMap {
     let (width, height) = (bands.width, bands.height);
     let mut disparity = DisparityMap::new(width, height, f32::NAN);
-    let slots: Vec<Mutex<Option<Vec<u16>>>> = (0..height).map(|_| Mutex::new(None)).collect();
-    let rows: Vec<Mutex<&mut [f32]>> =
-        disparity.as_mut_slice().chunks_exact_mut(width.max(1)).map(Mutex::new).collect();
-    let run = |forward: bool| {
-        let mut pass = Pass::new(inputs, bands, forward, level);
-        let mut sel = SelectScratch::default();
-        let order: Box<dyn Iterator<Item = usize>> =
-            if forward { Box::new(0..height) } else { Box::new((0..height).rev()) };
-        for y in order {
-            let mut sum = pass.row(y);
-            let other = {
-                let mut slot = slots[y].lock().unwrap_or_else(|e| e.into_inner());
-                match slot.take() {
-                    Some(other) => Some(other),
-                    None => {
-                        *slot = Some(sum);
-                        sum = Vec::new();
-                        None
-                    }
-                }
-            };
-            if let Some(other) = other {
-                for (s, o) in sum.iter_mut().zip(&other) {
-                    *s = s.wrapping_add(*o);
-                }
-                let mut out = rows[y].lock().unwrap_or_else(|e| e.into_inner());
-                select_row(inputs, bands, y, &sum, level, &mut sel, &mut out);
-            }
-        }
+    let shared = Shared {
+        slots: (0..height).map(|_| Mutex::new(None)).collect(),
+        rows: disparity.as_mut_slice().chunks_exact_mut(width.max(1)).map(Mutex::new).collect(),
+        spare: Mutex::new(Vec::new()),
     };
-    rayon::join(|| run(true), || run(false));
-    drop(rows);
+    rayon::join(
+        || run_pass(inputs, bands, true, level, &shared),
+        || run_pass(inputs, bands, false, level, &shared),
+    );
+    drop(shared);
     disparity
+}
+
+/// The lock's contents, also after a panic elsewhere (the data stays consistent per row).
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// What the two passes share: per row, the first pass's sums until the second takes them, and
+/// the output row; the sum buffers the second pass is done with, for the first to reuse.
+struct Shared<'d> {
+    slots: Vec<Mutex<Option<Vec<u16>>>>,
+    rows: Vec<Mutex<&'d mut [f32]>>,
+    spare: Mutex<Vec<Vec<u16>>>,
+}
+
+kernels::multiversion! {
+    /// One pass over every row, handing each row's sums over to (or taking them from) the other.
+    fn run_pass(inputs: &Inputs<'_>, bands: &Bands, forward: bool, level: Level, shared: &Shared<'_>) => run_pass_generic;
+}
+
+#[inline(always)]
+fn run_pass_generic(
+    inputs: &Inputs<'_>,
+    bands: &Bands,
+    forward: bool,
+    level: Level,
+    shared: &Shared<'_>,
+    _compiled_for: Level,
+) {
+    let height = bands.height;
+    let mut pass = Pass::new(inputs, bands, forward, level);
+    let mut sel = SelectScratch::default();
+    let mut sum = Vec::new();
+    for i in 0..height {
+        let y = if forward { i } else { height - 1 - i };
+        pass.row(y, &mut sum);
+        let other = {
+            let mut slot = lock(&shared.slots[y]);
+            match slot.take() {
+                Some(other) => Some(other),
+                None => {
+                    *slot = Some(std::mem::take(&mut sum));
+                    sum = lock(&shared.spare).pop().unwrap_or_default();
+                    None
+                }
+            }
+        };
+        if let Some(other) = other {
+            for (s, o) in sum.iter_mut().zip(&other) {
+                *s = s.wrapping_add(*o);
+            }
+            lock(&shared.spare).push(other);
+            let mut out = lock(&shared.rows[y]);
+            select_row(inputs, bands, y, &sum, level, &mut sel, &mut out);
+        }
+    }
 }
 
 /// One aggregation pass's state.
@@ -245,17 +298,16 @@ impl<'a, 'i> Pass<'a, 'i> {
         }
     }
 
-    /// Aggregates row `y` (the next row of the pass) and returns its path sums, band after band.
-    fn row(&mut self, y: usize) -> Vec<u16> {
+    /// Aggregates row `y` (the next row of the pass) into `sum`: its path sums, band after band.
+    #[inline(always)]
+    fn row(&mut self, y: usize, sum: &mut Vec<u16>) {
         let inputs = self.inputs;
         let width = self.bands.width;
         let (offsets, lanes) = self.bands.row(y);
         starts(lanes, 0, &mut self.sum_starts);
         starts(lanes, 2, &mut self.cur_starts);
         let total = self.sum_starts[width];
-        // The whole range's costs by the SIMD cost kernel; each band reads its slice of them.
-        let full = padded_lanes(inputs.range.count());
-        self.cost.resize(width * full, 0);
+        self.cost.resize(total, 0);
         let ad = inputs.ad.map(|(left, right, weight, cap)| {
             self.bt_left.fill(left.row(y), false);
             self.bt_right.fill(right.row(y), true);
@@ -263,17 +315,22 @@ impl<'a, 'i> Pass<'a, 'i> {
         });
         let ad = ad.map(|(weight, cap)| AdRows { left: &self.bt_left, right: &self.bt_right, weight, cap });
         let (cl, cr) = (inputs.census_left.row(y), inputs.census_right.row(y));
-        let (min, nd) = (inputs.range.min, inputs.range.count());
-        kernels::cost_row(Features::capped(self.level), cl, cr, min, nd, inputs.worst, ad, &mut self.cost);
+        let band_row = BandRow { offsets, lanes, starts: &self.sum_starts };
+        let features = Features::capped(self.level);
+        kernels::cost_bands(features, cl, cr, band_row, inputs.range.max, inputs.worst, ad, &mut self.cost);
 
         let padded = self.cur_starts[width];
         for (row, mins) in self.cur.iter_mut().zip(&mut self.cur_min) {
-            row.clear();
+            // The steps write every entry but the pads.
             row.resize(padded, PAD);
-            mins.clear();
+            for x in 0..width {
+                row[self.cur_starts[x]] = PAD;
+                row[self.cur_starts[x + 1] - 1] = PAD;
+            }
             mins.resize(width, 0);
         }
-        let mut sum = vec![0u16; total];
+        // Every entry is written by the first path step of its pixel.
+        sum.resize(total, 0);
         let image = inputs.image.row(y);
         let prev_image = self.prev_y.map(|py| inputs.image.row(py));
         let prev_bands = self.prev_y.map(|py| self.bands.row(py));
@@ -283,8 +340,7 @@ impl<'a, 'i> Pass<'a, 'i> {
         for i in 0..width {
             let x = if self.forward { i } else { width - 1 - i };
             let (o, n) = (offsets[x], usize::from(lanes[x]));
-            let first = x * full + (o - min) as usize;
-            let cost = &self.cost[first..first + n];
+            let cost = &self.cost[self.sum_starts[x]..self.sum_starts[x] + n];
             let s = &mut sum[self.sum_starts[x]..self.sum_starts[x] + n];
             let [a0, a1, a2, a3] = &mut self.aligned;
             // The horizontal path from the previous pixel of the row.
@@ -350,7 +406,6 @@ impl<'a, 'i> Pass<'a, 'i> {
         std::mem::swap(&mut self.prev_min, &mut self.cur_min);
         std::mem::swap(&mut self.prev_starts, &mut self.cur_starts);
         self.prev_y = Some(y);
-        sum
     }
 }
 
@@ -521,50 +576,7 @@ mod tests {
     }
 
     use crate::aggregate::P2Table;
-    use crate::cost::BT_PAD;
-    use crate::kernels::layout::JUNK_COST;
-    use crate::kernels::scalar::bt;
     use crate::{GrayImage, Image, MatchingCost, SgmParams, Subpixel};
-
-    /// Row `y`'s matching costs over each pixel's band (the values [`kernels::cost_row`] gives
-    /// for the same disparities): census Hamming distance plus the capped AD term, `worst` where the
-    /// right pixel is outside the image, [`JUNK_COST`] past the range's end.
-    fn band_costs(
-        inputs: &Inputs<'_>,
-        y: usize,
-        offsets: &[i32],
-        lanes: &[u16],
-        starts: &[usize],
-        ad: Option<AdRows<'_>>,
-        out: &mut [u16],
-    ) {
-        let (left, right) = (inputs.census_left.row(y), inputs.census_right.row(y));
-        let width = left.len();
-        for x in 0..width {
-            let (o, n) = (offsets[x], usize::from(lanes[x]));
-            let c = &mut out[starts[x]..starts[x] + n];
-            let l = left[x];
-            for (k, c) in c.iter_mut().enumerate() {
-                let d = o + k as i32;
-                let xr = x as i64 - i64::from(d);
-                *c = if d >= inputs.range.max {
-                    JUNK_COST
-                } else if !(0..width as i64).contains(&xr) {
-                    inputs.worst
-                } else {
-                    let xr = xr as usize;
-                    let mut v = (l ^ right[xr]).count_ones() as u16;
-                    if let Some(ad) = ad {
-                        let il = BT_PAD + x;
-                        let ir = BT_PAD + width - 1 - xr;
-                        let at = |r: &BtRow, i: usize| (r.value[i], r.lo[i], r.hi[i]);
-                        v += (u16::from(bt(at(ad.left, il), at(ad.right, ir))) * ad.weight).min(ad.cap);
-                    }
-                    v
-                };
-            }
-        }
-    }
 
     fn pair(w: usize, h: usize, shift: i64, seed: u64) -> (GrayImage, GrayImage) {
         let mut s = seed | 1;
@@ -622,7 +634,17 @@ mod tests {
                     (weight, cap)
                 });
                 let ad = ad.map(|(weight, cap)| AdRows { left: &p.bt_left, right: &p.bt_right, weight, cap });
-                band_costs(inputs, y, offsets, lanes, &p.sum_starts, ad, &mut c);
+                let (cl, cr) = (inputs.census_left.row(y), inputs.census_right.row(y));
+                let row = BandRow { offsets, lanes, starts: &p.sum_starts };
+                crate::kernels::scalar::cost_bands_scalar(
+                    cl,
+                    cr,
+                    row,
+                    inputs.range.max,
+                    inputs.worst,
+                    ad,
+                    &mut c,
+                );
                 c
             })
             .collect();
@@ -684,11 +706,19 @@ mod tests {
     /// The sums [`aggregate_bands`] selects from: both passes, added.
     fn band_sums(inputs: &Inputs<'_>, bands: &Bands, level: Level) -> Vec<Vec<u16>> {
         let mut forward = Pass::new(inputs, bands, true, level);
-        let mut sums: Vec<Vec<u16>> = (0..bands.height).map(|y| forward.row(y)).collect();
+        let mut sums: Vec<Vec<u16>> = (0..bands.height)
+            .map(|y| {
+                let mut s = Vec::new();
+                forward.row(y, &mut s);
+                s
+            })
+            .collect();
         let mut backward = Pass::new(inputs, bands, false, level);
+        let mut b = Vec::new();
         for y in (0..bands.height).rev() {
-            for (s, b) in sums[y].iter_mut().zip(backward.row(y)) {
-                *s = s.wrapping_add(b);
+            backward.row(y, &mut b);
+            for (s, b) in sums[y].iter_mut().zip(&b) {
+                *s = s.wrapping_add(*b);
             }
         }
         sums

@@ -75,6 +75,7 @@ impl CoarseMatch {
             adapt_to_pair: false,
             paths: crate::PathCount::Four,
             single_pass: true,
+            search: crate::Search::Full,
             edge_snap_radius: 0,
             fill: false,
             wmf_radius: 0,

@@ -236,7 +236,9 @@ fn match_coarse_to_fine(
     };
     let (coarse_left, coarse_right) =
         rayon::join(|| crate::radiometric::downsample(left, 2), || crate::radiometric::downsample(right, 2));
+    let t0 = std::time::Instant::now();
     let coarse = sgm_detailed(&coarse_left, &coarse_right, &coarse_params).ok()?;
+    let t1 = std::time::Instant::now();
     drop((coarse_left, coarse_right));
     let bands = Bands::from_coarse(&coarse.disparity, width, height, range);
     // The sums of the rows one pass finished before the other, at most the whole band volume.
@@ -245,7 +247,17 @@ fn match_coarse_to_fine(
     }
     let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
     let inputs = aggregation_inputs(left, Some(right), census_left, census_right, params, &p2);
+    let t2 = std::time::Instant::now();
     let disparity = aggregate_bands(&inputs, &bands, crate::kernels::features().level);
+    if std::env::var_os("SD_DEBUG").is_some() {
+        eprintln!(
+            "DEBUG {width}x{height} coarse {:?} bands {:?} aggregate {:?} mean {}",
+            t1 - t0,
+            t2 - t1,
+            t2.elapsed(),
+            bands.mean_searched(range)
+        );
+    }
     let report = SearchReport {
         hierarchical: true,
         levels: coarse.search.levels + 1,

@@ -2,7 +2,7 @@
 
 use std::time::{Duration, Instant};
 
-use stereo_disparity::{block_match, sgm_detailed, Adaptation, DisparityMap, GrayImage, Image};
+use stereo_disparity::{block_match, sgm_detailed, Adaptation, DisparityMap, GrayImage, Image, SearchReport};
 use stereo_image::{ImageRef, ToGray16};
 use stereo_rectify::{Alignment, AlignmentVerdict};
 
@@ -47,6 +47,8 @@ pub struct DepthResult {
     pub depth: Option<Image<f32>>,
     /// What SGM measured of the pair and adapted its cost to.
     pub adaptation: Option<Adaptation>,
+    /// Which search SGM ran (full or coarse to fine) and the mean disparities per pixel.
+    pub search: Option<SearchReport>,
     pub rectification: Rectification,
     /// Pixels the depth limits invalidated.
     pub depth_limits_cut: Option<usize>,
@@ -85,7 +87,7 @@ impl Plan {
         let rectification_time = t.elapsed();
 
         let t = Instant::now();
-        let (mut disparity, confidence, adaptation, status) = match &params.matcher {
+        let (mut disparity, confidence, (adaptation, search), status) = match &params.matcher {
             Matcher::Sgm(sgm) => {
                 let out = sgm_detailed(left, &right, sgm)?;
                 let (mut disparity, confidence, status) = (out.disparity, out.confidence, out.status);
@@ -96,9 +98,9 @@ impl Plan {
                         }
                     }
                 }
-                (disparity, confidence, Some(out.adaptation), Some(status))
+                (disparity, confidence, (Some(out.adaptation), Some(out.search)), Some(status))
             }
-            Matcher::Bm(bm) => (block_match(left, &right, bm)?, None, None, None),
+            Matcher::Bm(bm) => (block_match(left, &right, bm)?, None, (None, None), None),
         };
         let matching = t.elapsed();
         drop(right);
@@ -117,6 +119,7 @@ impl Plan {
             status,
             depth,
             adaptation,
+            search,
             rectification,
             depth_limits_cut,
             timings: StageTimings { rectification: rectification_time, matching, triangulation },

@@ -80,6 +80,16 @@ pub(crate) struct AdRows<'a> {
     pub cap: u16,
 }
 
+/// A row's per-pixel disparity bands (the coarse-to-fine search): pixel `x` searches
+/// `offsets[x] .. offsets[x] + lanes[x]` (`lanes[x]` a multiple of [`LANES`]), its entries
+/// starting at `starts[x]` of the row's band-after-band layout.
+#[derive(Clone, Copy)]
+pub(crate) struct BandRow<'a> {
+    pub offsets: &'a [i32],
+    pub lanes: &'a [u16],
+    pub starts: &'a [usize],
+}
+
 /// One path's input for a step: the previous pixel's padded path-cost vector and its minimum,
 /// and the large-jump penalty for this step. A path that starts here uses an all-zero `prev`
 /// with minimum 0, which makes the step return the matching cost itself.

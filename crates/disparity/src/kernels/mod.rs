@@ -15,8 +15,8 @@
 use std::sync::OnceLock;
 
 use layout::{
-    padded_lanes, padded_lanes_u8, AdRows, FromRow, PathIn, PathInU8, Samples, Trailing, Window, BT_PAD,
-    LANES, LANES_U8, MAX_AD_CAP,
+    padded_lanes, padded_lanes_u8, AdRows, BandRow, FromRow, PathIn, PathInU8, Samples, Trailing, Window,
+    BT_PAD, LANES, LANES_U8, MAX_AD_CAP,
 };
 
 /// One register of the SGM recurrence (Hirschmüller 2008, eq. 13) for one path, written once for
@@ -359,6 +359,40 @@ pub(crate) fn cost_row(
             avx2::cost_row_avx2(left, right, min_disparity, nd, worst, ad, out)
         },
         Level::Scalar => scalar::cost_row_scalar(left, right, min_disparity, nd, worst, ad, out),
+    }
+}
+
+/// [`cost_row`] over per-pixel bands: pixel `x`'s `bands.lanes[x]` costs from disparity
+/// `bands.offsets[x]` into `out[bands.starts[x]..]`, [`layout::JUNK_COST`] at and past
+/// `range_max`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn cost_bands(
+    features: Features,
+    left: &[u64],
+    right: &[u64],
+    bands: BandRow<'_>,
+    range_max: i32,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u16],
+) {
+    let width = left.len();
+    assert!(right.len() == width && bands.offsets.len() == width && bands.lanes.len() == width);
+    assert!(bands.starts.len() >= width);
+    for x in 0..width {
+        let n = usize::from(bands.lanes[x]);
+        assert!(n > 0 && n.is_multiple_of(LANES) && bands.starts[x] + n <= out.len());
+        assert!(bands.offsets[x] < range_max);
+    }
+    check_ad(&ad, width);
+    match features.level {
+        // SAFETY: `vpopcnt` is only set when the CPU has AVX-512F/BW/VL and VPOPCNTDQ; lengths
+        // and offsets were checked above.
+        #[cfg(target_arch = "x86_64")]
+        Level::Avx512 if features.vpopcnt => unsafe {
+            avx512::cost_bands_avx512(left, right, bands, range_max, worst, ad, out)
+        },
+        _ => scalar::cost_bands_scalar(left, right, bands, range_max, worst, ad, out),
     }
 }
 

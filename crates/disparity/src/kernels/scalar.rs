@@ -3,8 +3,8 @@
 //! Imports only [`super::layout`].
 
 use super::layout::{
-    feasible, padded_lanes, padded_lanes_u8, AdRows, BtRow, PathIn, PathInU8, Samples, Window, BT_PAD,
-    JUNK_COST, PAD_U8,
+    feasible, padded_lanes, padded_lanes_u8, AdRows, BandRow, BtRow, PathIn, PathInU8, Samples, Window,
+    BT_PAD, JUNK_COST, PAD_U8,
 };
 
 /// The readable reference of [`super::path_step`].
@@ -84,6 +84,40 @@ pub(crate) fn cost_row_scalar(
         for (k, c) in costs[lo..hi].iter_mut().enumerate() {
             let xr = (first - (lo + k) as i64) as usize;
             *c = (l ^ right[xr]).count_ones() as u16;
+            if let Some(ad) = ad {
+                let il = BT_PAD + x;
+                let ir = BT_PAD + width - 1 - xr;
+                let at = |r: &BtRow, i: usize| (r.value[i], r.lo[i], r.hi[i]);
+                let term = u16::from(bt(at(ad.left, il), at(ad.right, ir))) * ad.weight;
+                *c += term.min(ad.cap);
+            }
+        }
+        costs[hi..nd].fill(worst);
+        costs[nd..].fill(JUNK_COST);
+    }
+}
+
+/// The readable reference of [`super::cost_bands`]: [`cost_row_scalar`]'s pixel loop over each
+/// pixel's own band (`nd` real disparities up to `range_max`, [`JUNK_COST`] past it).
+pub(crate) fn cost_bands_scalar(
+    left: &[u64],
+    right: &[u64],
+    bands: BandRow<'_>,
+    range_max: i32,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u16],
+) {
+    let width = left.len();
+    for x in 0..width {
+        let (o, n) = (bands.offsets[x], usize::from(bands.lanes[x]));
+        let nd = ((range_max - o) as usize).min(n);
+        let costs = &mut out[bands.starts[x]..bands.starts[x] + n];
+        let (lo, hi, first) = feasible(x, width, o, nd);
+        costs[..lo].fill(worst);
+        for (k, c) in costs[lo..hi].iter_mut().enumerate() {
+            let xr = (first - (lo + k) as i64) as usize;
+            *c = (left[x] ^ right[xr]).count_ones() as u16;
             if let Some(ad) = ad {
                 let il = BT_PAD + x;
                 let ir = BT_PAD + width - 1 - xr;

@@ -112,6 +112,60 @@ proptest! {
             prop_assert_eq!(&out, &reference, "{:?}", f);
         }
     }
+
+    /// The band cost kernels equal the per-pixel rows of [`cost_row_scalar`] at each pixel's
+    /// band (and the scalar band reference), for bands anywhere in the range, wider than what
+    /// is left of it, and at the image borders.
+    #[test]
+    fn cost_band_kernels_match_the_cost_row(width in 1usize..100, nd in 1i32..90, min in -20i32..20,
+                                            seed in any::<u64>(), worst in 9u16..=64,
+                                            ad in any::<Option<(u8, u8)>>()) {
+        let mut s = seed | 1;
+        let mut next = || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s };
+        let left: Vec<u64> = (0..width).map(|_| next()).collect();
+        let right: Vec<u64> = (0..width).map(|_| next()).collect();
+        let grey = |next: &mut dyn FnMut() -> u64| (0..width).map(|_| (next() % 65536) as u16).collect::<Vec<u16>>();
+        let (grey_left, grey_right) = (grey(&mut next), grey(&mut next));
+        let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());
+        bt_left.fill(&grey_left, false);
+        bt_right.fill(&grey_right, true);
+        let ad = ad.map(|(weight, cap)| AdRows {
+            left: &bt_left, right: &bt_right, weight: u16::from(weight % 9), cap: u16::from(cap % 128),
+        });
+        let worst = worst + ad.map_or(0, |a| a.cap);
+        let max = min + nd;
+        let mut offsets = Vec::new();
+        let mut lanes = Vec::new();
+        let mut starts = Vec::new();
+        let mut total = 0;
+        for _ in 0..width {
+            let o = min + (next() % nd as u64) as i32;
+            let n = 16 * (1 + (next() % 4) as u16);
+            offsets.push(o);
+            lanes.push(n);
+            starts.push(total);
+            total += usize::from(n);
+        }
+        let bands = BandRow { offsets: &offsets, lanes: &lanes, starts: &starts };
+        let mut reference = vec![0u16; total];
+        scalar::cost_bands_scalar(&left, &right, bands, max, worst, ad, &mut reference);
+        // Pixel x's band is the row of costs from its offset with as many real disparities.
+        for x in 0..width {
+            let (o, n) = (offsets[x], usize::from(lanes[x]));
+            let nd_x = ((max - o) as usize).min(n);
+            let mut row = vec![0u16; width * padded_lanes(nd_x)];
+            cost_row_scalar(&left, &right, o, nd_x, worst, ad, &mut row);
+            let p = padded_lanes(nd_x);
+            prop_assert_eq!(&reference[starts[x]..starts[x] + nd_x], &row[x * p..x * p + nd_x]);
+            prop_assert!(reference[starts[x] + nd_x..starts[x] + n].iter().all(|&c| c == JUNK_COST));
+        }
+        for level in supported_levels() {
+            let f = Features::capped(level);
+            let mut out = vec![1u16; total];
+            cost_bands(f, &left, &right, bands, max, worst, ad, &mut out);
+            prop_assert_eq!(&out, &reference, "{:?}", f);
+        }
+    }
 }
 
 proptest! {

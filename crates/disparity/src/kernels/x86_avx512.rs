@@ -7,7 +7,8 @@
 use std::arch::x86_64::*;
 
 use super::layout::{
-    feasible, interleave, padded_lanes, padded_lanes_u8, AdRows, PathIn, PathInU8, BT_PAD, JUNK_COST, PAD_U8,
+    feasible, interleave, padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, PathInU8, BT_PAD,
+    JUNK_COST, PAD_U8,
 };
 use super::x86_avx2::hmin_epu16_256;
 
@@ -179,49 +180,28 @@ fn lanes_between(lo: i64, hi: i64, n: i64) -> u64 {
     upto(hi) & !upto(lo)
 }
 
-/// AVX-512 VPOPCNTQ [`super::cost_row`]: 32 disparities per step, entirely in registers.
-/// Four loads of 8 right census strings (ascending addresses, so descending disparities), four
-/// popcounts packed into the four 16-bit words of each 64-bit lane by shifts, and one word
-/// permutation back to disparity order (no narrowing stores, no reversal per load); then the
-/// AD term, the worst cost where the right pixel is outside the row, and a single store.
+/// The `lanes` costs of pixel `x` from disparity `min_disparity` (`nd` of them real, the rest
+/// [`JUNK_COST`]) into `dst`: the body of both cost kernels, a macro so that it is compiled
+/// inside each (a `#[target_feature]` function cannot be forced inline).
 ///
-/// # Safety
-/// The CPU must have AVX-512F/BW/VL and VPOPCNTDQ; lengths as checked by [`super::cost_row`].
-#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vpopcntdq")]
-pub(super) unsafe fn cost_row_avx512(
-    left: &[u64],
-    right: &[u64],
-    min_disparity: i32,
-    nd: usize,
-    worst: u16,
-    ad: Option<AdRows<'_>>,
-    out: &mut [u16],
-) {
-    let width = left.len();
-    let lanes = padded_lanes(nd);
-    let junk = _mm512_set1_epi16(JUNK_COST as i16);
-    let worst = _mm512_set1_epi16(worst as i16);
-    // Word 4i + j of the packed vector is load j's lane i: disparity k + 8j + 7 - i.
-    let unpack = {
-        let mut idx = [0i16; 32];
-        for (m, v) in idx.iter_mut().enumerate() {
-            *v = (4 * (7 - m % 8) + m / 8) as i16;
-        }
-        _mm512_loadu_si512(idx.as_ptr().cast())
-    };
-    let (weight, cap) = match &ad {
-        Some(ad) => (_mm512_set1_epi16(ad.weight as i16), _mm512_set1_epi16(ad.cap as i16)),
-        None => (_mm512_setzero_si512(), _mm512_setzero_si512()),
-    };
-    let bt_len = (width + 2 * BT_PAD) as i64;
-    for (x, &census) in left.iter().enumerate() {
-        let l = _mm512_set1_epi64(census as i64);
+/// Safety (of the expansion): AVX-512F/BW/VL and VPOPCNTDQ; `dst` has `lanes` entries, `lanes`
+/// a multiple of 16 and at least `nd`; the AD rows (if any) are `width + 2 * BT_PAD` long.
+macro_rules! cost_pixel_avx512 {
+    ($left:expr, $right:expr, $x:expr, $min_disparity:expr, $nd:expr, $lanes:expr, $consts:expr, $ad:expr, $dst:expr $(,)?) => {{
+        let (left, right, x, min_disparity, nd, lanes): (&[u64], &[u64], usize, i32, usize, usize) =
+            ($left, $right, $x, $min_disparity, $nd, $lanes);
+        let c: &CostConsts = $consts;
+        let ad: &Option<AdRows<'_>> = $ad;
+        let dst: *mut u16 = $dst;
+        let width = left.len();
+        let bt_len = (width + 2 * BT_PAD) as i64;
+        let l = _mm512_set1_epi64(left[x] as i64);
         // Disparity index k has its right pixel at first - k: inside the row for k in lo..hi.
         let (lo, hi, first) = feasible(x, width, min_disparity, nd);
-        let interior = lo == 0 && hi == nd;
+        // The BT loads of lanes past `nd` stay inside the pads only when they are fewer than 16.
+        let interior = lo == 0 && hi == nd && lanes == padded_lanes(nd);
         // Every census load of the pixel (padding lanes included) inside the row.
         let loads_inside = first + 1 >= lanes as i64 && first < width as i64;
-        let dst = out.as_mut_ptr().add(x * lanes);
         let bt_left = ad.as_ref().map(|ad| {
             let il = BT_PAD + x;
             (
@@ -256,8 +236,8 @@ pub(super) unsafe fn cost_row_avx512(
                 _mm512_or_si512(count(0), _mm512_slli_epi64::<16>(count(1))),
                 _mm512_or_si512(_mm512_slli_epi64::<32>(count(2)), _mm512_slli_epi64::<48>(count(3))),
             );
-            let mut cost = _mm512_permutexvar_epi16(unpack, packed);
-            if let (Some(ad), Some((lv, llo, lhi))) = (&ad, bt_left) {
+            let mut cost = _mm512_permutexvar_epi16(c.unpack, packed);
+            if let (Some(ad), Some((lv, llo, lhi))) = (ad, bt_left) {
                 // Disparity k reads the reversed right BT rows at `i + k`; the pads of
                 // `BT_PAD` entries cover the lanes of interior pixels past `nd`, masks the rest.
                 let i = BT_PAD as i64 + width as i64 - 1 - first + k as i64;
@@ -271,16 +251,16 @@ pub(super) unsafe fn cost_row_avx512(
                 let d_lr = _mm256_max_epu8(_mm256_subs_epu8(lv, rhi), _mm256_subs_epu8(rlo, lv));
                 let d_rl = _mm256_max_epu8(_mm256_subs_epu8(rv, lhi), _mm256_subs_epu8(llo, rv));
                 let bt = _mm512_cvtepu8_epi16(_mm256_min_epu8(d_lr, d_rl));
-                cost = _mm512_add_epi16(cost, _mm512_min_epu16(_mm512_mullo_epi16(bt, weight), cap));
+                cost = _mm512_add_epi16(cost, _mm512_min_epu16(_mm512_mullo_epi16(bt, c.weight), c.cap));
             }
             let cost = if interior && k + 32 <= nd {
                 cost
             } else if interior {
-                _mm512_mask_mov_epi16(junk, ((1u64 << (nd - k)) - 1) as __mmask32, cost)
+                _mm512_mask_mov_epi16(c.junk, ((1u64 << (nd - k)) - 1) as __mmask32, cost)
             } else {
                 let feasible = lanes_between(lo as i64 - k as i64, hi as i64 - k as i64, 32) as __mmask32;
                 let real = lanes_between(0, nd as i64 - k as i64, 32) as __mmask32;
-                _mm512_mask_mov_epi16(junk, real, _mm512_mask_mov_epi16(worst, feasible, cost))
+                _mm512_mask_mov_epi16(c.junk, real, _mm512_mask_mov_epi16(c.worst, feasible, cost))
             };
             // Two 256-bit stores: a pixel's entries start at a multiple of 32 bytes (`lanes`
             // is a multiple of 16), so neither splits a cache line, where one 512-bit store
@@ -292,6 +272,112 @@ pub(super) unsafe fn cost_row_avx512(
                 _mm256_storeu_si256(dst.add(k + 16).cast(), _mm512_extracti64x4_epi64::<1>(cost));
             }
             k += 32;
+        }
+    }};
+}
+
+/// AVX-512 VPOPCNTQ [`super::cost_row`]: 32 disparities per step, entirely in registers.
+/// Four loads of 8 right census strings (ascending addresses, so descending disparities), four
+/// popcounts packed into the four 16-bit words of each 64-bit lane by shifts, and one word
+/// permutation back to disparity order (no narrowing stores, no reversal per load); then the
+/// AD term, the worst cost where the right pixel is outside the row, and a single store.
+///
+/// # Safety
+/// The CPU must have AVX-512F/BW/VL and VPOPCNTDQ; lengths as checked by [`super::cost_row`].
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vpopcntdq")]
+pub(super) unsafe fn cost_row_avx512(
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u16],
+) {
+    let lanes = padded_lanes(nd);
+    let consts = CostConsts::new(worst, &ad);
+    for x in 0..left.len() {
+        // SAFETY: `out` has `width * lanes` entries (checked by the caller).
+        cost_pixel_avx512!(
+            left,
+            right,
+            x,
+            min_disparity,
+            nd,
+            lanes,
+            &consts,
+            &ad,
+            out.as_mut_ptr().add(x * lanes),
+        );
+    }
+}
+
+/// AVX-512 VPOPCNTQ [`super::cost_bands`]: [`cost_row_avx512`]'s pixel step over each pixel's
+/// own band.
+///
+/// # Safety
+/// The CPU must have AVX-512F/BW/VL and VPOPCNTDQ; lengths as checked by [`super::cost_bands`].
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vpopcntdq")]
+pub(super) unsafe fn cost_bands_avx512(
+    left: &[u64],
+    right: &[u64],
+    bands: BandRow<'_>,
+    range_max: i32,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u16],
+) {
+    let consts = CostConsts::new(worst, &ad);
+    for x in 0..left.len() {
+        let (o, n) = (bands.offsets[x], usize::from(bands.lanes[x]));
+        let nd = (range_max - o) as usize;
+        // SAFETY: `starts[x] + lanes[x] <= out.len()` and `offsets[x] < range_max` (checked by
+        // the caller).
+        cost_pixel_avx512!(
+            left,
+            right,
+            x,
+            o,
+            nd.min(n),
+            n,
+            &consts,
+            &ad,
+            out.as_mut_ptr().add(bands.starts[x]),
+        );
+    }
+}
+
+/// The constant registers of the cost kernels.
+struct CostConsts {
+    junk: __m512i,
+    worst: __m512i,
+    unpack: __m512i,
+    weight: __m512i,
+    cap: __m512i,
+}
+
+impl CostConsts {
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
+    unsafe fn new(worst: u16, ad: &Option<AdRows<'_>>) -> Self {
+        // Word 4i + j of the packed vector is load j's lane i: disparity k + 8j + 7 - i.
+        let unpack = {
+            let mut idx = [0i16; 32];
+            for (m, v) in idx.iter_mut().enumerate() {
+                *v = (4 * (7 - m % 8) + m / 8) as i16;
+            }
+            _mm512_loadu_si512(idx.as_ptr().cast())
+        };
+        let (weight, cap) = match ad {
+            Some(ad) => (_mm512_set1_epi16(ad.weight as i16), _mm512_set1_epi16(ad.cap as i16)),
+            None => (_mm512_setzero_si512(), _mm512_setzero_si512()),
+        };
+        CostConsts {
+            junk: _mm512_set1_epi16(JUNK_COST as i16),
+            worst: _mm512_set1_epi16(worst as i16),
+            unpack,
+            weight,
+            cap,
         }
     }
 }
