@@ -72,11 +72,11 @@ impl Bands {
                 lanes: vec![full as u16; width * height],
             };
         }
-        // Span of the valid coarse disparities within `r` coarse pixels of (cx, cy).
-        let span = |cx: usize, cy: usize, r: usize| -> Option<(f32, f32)> {
+        // Span of the valid coarse disparities in columns xs and rows ys.
+        let span = |xs: (usize, usize), ys: (usize, usize)| -> Option<(f32, f32)> {
             let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-            for y in cy.saturating_sub(r)..(cy + r + 1).min(ch) {
-                for &d in &coarse.row(y)[cx.saturating_sub(r)..(cx + r + 1).min(cw)] {
+            for y in ys.0..=ys.1 {
+                for &d in &coarse.row(y)[xs.0..=xs.1] {
                     if d.is_finite() {
                         lo = lo.min(d);
                         hi = hi.max(d);
@@ -85,32 +85,39 @@ impl Bands {
             }
             (lo <= hi).then_some((lo, hi))
         };
-        let coarse_bands: Vec<(i32, u16)> = (0..ch)
+        // A fine pixel's band spans its two nearest coarse pixels in each direction: fine `v`
+        // lies between coarse `(v - 1) / 2` and `(v + 1) / 2`, so each 2×2 block of coarse pixels
+        // (`block[j][i]`: coarse columns `i - 1, i` and rows `j - 1, j`, clamped) serves the fine
+        // pixels `2i - 1 ..= 2i`.
+        let pair = |i: usize, n: usize| (i.saturating_sub(1).min(n - 1), i.min(n - 1));
+        let wide = |i: usize, n: usize| (i.saturating_sub(3).min(n - 1), (i + 2).min(n - 1));
+        let blocks: Vec<Vec<(i32, u16)>> = (0..=ch)
             .into_par_iter()
-            .flat_map_iter(|cy| {
-                (0..cw).map(move |cx| {
-                    let wanted = match span(cx, cy, 1) {
-                        Some((lo, hi)) => {
-                            Some(((2.0 * lo).floor() as i32 - MARGIN, (2.0 * hi).ceil() as i32 + MARGIN))
-                        }
-                        None => span(cx, cy, 3).map(|(lo, hi)| {
-                            ((2.0 * lo).floor() as i32 - 2 * MARGIN, (2.0 * hi).ceil() as i32 + 2 * MARGIN)
-                        }),
-                    };
-                    let (o, n) = match wanted {
-                        Some((lo, hi)) => band(lo, hi, range, full),
-                        None => (range.min, full),
-                    };
-                    (o, n as u16)
-                })
+            .map(|j| {
+                (0..=cw)
+                    .map(|i| {
+                        let wanted = match span(pair(i, cw), pair(j, ch)) {
+                            Some((lo, hi)) => Some((floor2(lo) - MARGIN, ceil2(hi) + MARGIN)),
+                            // No valid coarse pixel: a wider neighbourhood and margin.
+                            None => span(wide(i, cw), wide(j, ch))
+                                .map(|(lo, hi)| (floor2(lo) - 2 * MARGIN, ceil2(hi) + 2 * MARGIN)),
+                        };
+                        let (o, n) = match wanted {
+                            Some((lo, hi)) => band(lo, hi, range, full),
+                            None => (range.min, full),
+                        };
+                        (o, n as u16)
+                    })
+                    .collect()
             })
             .collect();
+        let block = |v: usize| v.div_ceil(2);
         let mut offset = Vec::with_capacity(width * height);
         let mut lanes = Vec::with_capacity(width * height);
         for y in 0..height {
-            let row = &coarse_bands[(y / 2).min(ch - 1) * cw..][..cw];
+            let row = &blocks[block(y).min(ch)];
             for x in 0..width {
-                let (o, n) = row[(x / 2).min(cw - 1)];
+                let (o, n) = row[block(x).min(cw)];
                 offset.push(o);
                 lanes.push(n);
             }
@@ -139,6 +146,17 @@ impl Bands {
         let r = y * self.width..(y + 1) * self.width;
         (&self.offset[r.clone()], &self.lanes[r])
     }
+}
+
+/// `2v` rounded down and up to whole disparities (coarse disparities are halved fine ones).
+fn floor2(v: f32) -> i32 {
+    let t = (2.0 * v) as i32;
+    t - i32::from((t as f32) > 2.0 * v)
+}
+
+fn ceil2(v: f32) -> i32 {
+    let t = (2.0 * v) as i32;
+    t + i32::from((t as f32) < 2.0 * v)
 }
 
 /// The band `(offset, lanes)` covering `lo..=hi` (clipped to the range), `lanes` rounded up to
