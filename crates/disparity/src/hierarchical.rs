@@ -339,12 +339,8 @@ impl<'a, 'i> Pass<'a, 'i> {
 
         let padded = self.cur_starts[width];
         for (row, mins) in self.cur.iter_mut().zip(&mut self.cur_min) {
-            // The steps write every entry but the pads.
+            // The steps write every entry but the pads, which are set pixel by pixel.
             row.resize(padded, PAD);
-            for x in 0..width {
-                row[self.cur_starts[x]] = PAD;
-                row[self.cur_starts[x + 1] - 1] = PAD;
-            }
             mins.resize(width, 0);
         }
         // Every entry is written by the first path step of its pixel.
@@ -399,7 +395,12 @@ impl<'a, 'i> Pass<'a, 'i> {
             let h_out = &mut self.h_cur[..n + 2];
             let mins = if self.cur.len() == 3 {
                 let [c0, c1, c2] = &mut self.cur[..] else { unreachable!() };
-                let outs = [h_out, &mut c0[st..st + n + 2], &mut c1[st..st + n + 2], &mut c2[st..st + n + 2]];
+                let (c0, c1, c2) = (
+                    with_pads(&mut c0[st..st + n + 2]),
+                    with_pads(&mut c1[st..st + n + 2]),
+                    with_pads(&mut c2[st..st + n + 2]),
+                );
+                let outs = [h_out, c0, c1, c2];
                 let ins = [h_in, row_ins[0], row_ins[1], row_ins[2]];
                 let m = kernels::path_step::<4>(self.level, cost, inputs.p1, ins, outs, s, false);
                 for k in 0..3 {
@@ -407,8 +408,7 @@ impl<'a, 'i> Pass<'a, 'i> {
                 }
                 m[0]
             } else {
-                let c0 = &mut self.cur[0];
-                let outs = [h_out, &mut c0[st..st + n + 2]];
+                let outs = [h_out, with_pads(&mut self.cur[0][st..st + n + 2])];
                 let m =
                     kernels::path_step::<2>(self.level, cost, inputs.p1, [h_in, row_ins[0]], outs, s, false);
                 self.cur_min[0][x] = m[1];
@@ -425,6 +425,15 @@ impl<'a, 'i> Pass<'a, 'i> {
         std::mem::swap(&mut self.prev_starts, &mut self.cur_starts);
         self.prev_y = Some(y);
     }
+}
+
+/// `v` with [`PAD`] at both ends (a pixel's path-cost vector before its step fills the rest).
+#[inline(always)]
+fn with_pads(v: &mut [u16]) -> &mut [u16] {
+    let n = v.len();
+    v[0] = PAD;
+    v[n - 1] = PAD;
+    v
 }
 
 /// A neighbour's padded path-cost vector and its band.
