@@ -205,6 +205,56 @@ pub(crate) fn aggregate_bands(inputs: &Inputs<'_>, bands: &Bands, level: Level) 
     disparity
 }
 
+/// The single-pass variant ([`crate::SgmParams::single_pass`], as
+/// [`crate::aggregate::stream_and_select`]): only the forward directions plus a ← sweep over
+/// each row, so every row is final when done and nothing is stored. The image is cut into
+/// `strips` strips, each on its own thread and warming its paths up over `overlap` rows above.
+pub(crate) fn stream_bands(
+    inputs: &Inputs<'_>,
+    bands: &Bands,
+    level: Level,
+    strips: usize,
+    overlap: usize,
+) -> DisparityMap {
+    let (width, height) = (bands.width, bands.height);
+    let mut disparity = DisparityMap::new(width, height, f32::NAN);
+    let strip_rows = height.div_ceil(strips.clamp(1, height.max(1))).max(1);
+    rayon::scope(|scope| {
+        for (strip, rows) in disparity.as_mut_slice().chunks_mut(strip_rows * width.max(1)).enumerate() {
+            scope.spawn(move |_| stream_strip(inputs, bands, level, strip * strip_rows, overlap, rows));
+        }
+    });
+    disparity
+}
+
+kernels::multiversion! {
+    /// One strip of [`stream_bands`]: rows from `y0` (warm-up above it) into `rows`.
+    fn stream_strip(inputs: &Inputs<'_>, bands: &Bands, level: Level, y0: usize, overlap: usize, rows: &mut [f32]) => stream_strip_generic;
+}
+
+#[inline(always)]
+fn stream_strip_generic(
+    inputs: &Inputs<'_>,
+    bands: &Bands,
+    level: Level,
+    y0: usize,
+    overlap: usize,
+    rows: &mut [f32],
+    _compiled_for: Level,
+) {
+    let width = bands.width.max(1);
+    let mut pass = Pass::new(inputs, bands, true, level);
+    let mut sel = SelectScratch::default();
+    let mut sum = Vec::new();
+    for y in y0.saturating_sub(overlap)..y0 + rows.len() / width {
+        pass.row(y, &mut sum);
+        if y >= y0 {
+            pass.leftward(y, &mut sum);
+            select_row(inputs, bands, y, &sum, level, &mut sel, &mut rows[(y - y0) * width..][..width]);
+        }
+    }
+}
+
 /// The lock's contents, also after a panic elsewhere (the data stays consistent per row).
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
@@ -424,6 +474,42 @@ impl<'a, 'i> Pass<'a, 'i> {
         std::mem::swap(&mut self.prev_min, &mut self.cur_min);
         std::mem::swap(&mut self.prev_starts, &mut self.cur_starts);
         self.prev_y = Some(y);
+    }
+
+    /// Adds the ← path of row `y` into `sum`, right after [`Pass::row`] of the same row (whose
+    /// costs it reuses).
+    #[inline(always)]
+    fn leftward(&mut self, y: usize, sum: &mut [u16]) {
+        let inputs = self.inputs;
+        let width = self.bands.width;
+        let (offsets, lanes) = self.bands.row(y);
+        let image = inputs.image.row(y);
+        let mut h_min = 0u16;
+        for x in (0..width).rev() {
+            let (o, n) = (offsets[x], usize::from(lanes[x]));
+            let range = self.sum_starts[x]..self.sum_starts[x] + n;
+            let h_in = if x + 1 < width {
+                let px = x + 1;
+                let src = Source { costs: &self.h_prev, offset: offsets[px], lanes: usize::from(lanes[px]) };
+                let prev = align(src, o, n, &mut self.aligned[0]);
+                PathIn { prev, prev_min: h_min, p2: inputs.p2.p2(image[x], image[px]) }
+            } else {
+                PathIn { prev: &self.zero[..n + 2], prev_min: 0, p2: 0 }
+            };
+            let outs = [&mut self.h_cur[..n + 2]];
+            let [m] = kernels::path_step::<1>(
+                self.level,
+                &self.cost[range.clone()],
+                inputs.p1,
+                [h_in],
+                outs,
+                &mut sum[range],
+                true,
+            );
+            self.h_cur[n + 1] = PAD;
+            h_min = m;
+            std::mem::swap(&mut self.h_prev, &mut self.h_cur);
+        }
     }
 }
 
@@ -761,12 +847,13 @@ mod tests {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
 
         /// Bands covering the whole range give the full search's winners bit for bit (tags too),
-        /// at every SIMD level.
+        /// two-pass and single-pass, at every SIMD level.
         #[test]
         fn full_bands_are_the_full_search(
             w in 10usize..70, h in 8usize..24, nd in 1i32..40, min in -6i32..6, four in proptest::prelude::any::<bool>(),
             p1 in 1u16..40, p2_extra in 1u16..200, edge in 0u16..40, uniq in 0u32..15, lr in proptest::prelude::any::<Option<u8>>(),
             sub in 0u8..3, ad in proptest::prelude::any::<Option<(u8, u8)>>(), seed in proptest::prelude::any::<u64>(),
+            strips in 1usize..4, overlap in 0usize..12,
         ) {
             let nd = nd.min(w as i32 - 2);
             let params = SgmParams {
@@ -786,10 +873,18 @@ mod tests {
             let full = crate::sgm::aggregate_census(&left, Some(&right), &cl, &cr, &params);
             let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
             let inputs = crate::sgm::aggregation_inputs(&left, Some(&right), &cl, &cr, &params, &p2);
+            let mut streamed = DisparityMap::new(w, h, 0.0);
+            crate::aggregate::stream_and_select(&inputs, strips, overlap, streamed.as_mut_slice());
             for level in crate::kernels::supported_levels() {
-                let banded = aggregate_bands(&inputs, &Bands::full(w, h, params.range), level);
+                let bands = Bands::full(w, h, params.range);
+                let banded = aggregate_bands(&inputs, &bands, level);
                 for (i, (a, b)) in banded.as_slice().iter().zip(full.as_slice()).enumerate() {
                     proptest::prop_assert_eq!(a.to_bits(), b.to_bits(), "{:?} pixel {}: {} vs {}", level, i, a, b);
+                }
+                // Single pass, in strips with warm-up rows.
+                let banded = stream_bands(&inputs, &bands, level, strips, overlap);
+                for (i, (a, b)) in banded.as_slice().iter().zip(streamed.as_slice()).enumerate() {
+                    proptest::prop_assert_eq!(a.to_bits(), b.to_bits(), "single pass {:?} pixel {}: {} vs {}", level, i, a, b);
                 }
             }
         }

@@ -112,7 +112,9 @@ pub enum Search {
     /// Coarse to fine (tSGM): a half-resolution match over the whole range, then each pixel only
     /// in a band around the coarse result. Time and memory scale with the bands, not the range.
     Hierarchical,
-    /// Hierarchical where it measured as accurate as the full search (large ranges), else full.
+    /// Hierarchical for ranges of 256 disparities or more, where it measured both faster and
+    /// more accurate than the full search; full below (there the hierarchical search is as
+    /// accurate or more, but slower: docs/performance.md).
     #[default]
     Auto,
 }
@@ -210,9 +212,7 @@ pub struct SgmParams {
     /// [`PathCount::Four`]), so no `W·H·D` volume is kept: `O(W·D)` memory per thread and
     /// about twice the speed, at some accuracy cost.
     pub single_pass: bool,
-    /// How the range is searched ([`Search::Auto`]: coarse to fine for large ranges). The
-    /// hierarchical search runs both aggregation passes over per-pixel bands; it ignores
-    /// [`SgmParams::single_pass`].
+    /// How the range is searched ([`Search::Auto`]: coarse to fine for large ranges).
     pub search: Search,
     /// Upper bound (bytes) on the working memory the matcher plans (see
     /// [`planned_memory_bytes`]): the two-pass aggregation then runs on horizontal strips short

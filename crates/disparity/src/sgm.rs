@@ -5,7 +5,7 @@ use crate::buffer::ZeroedBuffer;
 use crate::census::census_transform;
 use crate::confidence::census_confidence;
 use crate::cost::infeasible_cost;
-use crate::hierarchical::{aggregate_bands, Bands};
+use crate::hierarchical::{aggregate_bands, stream_bands, Bands};
 use crate::memory;
 use crate::post::{Adaptation, SearchReport, SgmOutput};
 use crate::radiometric::{blockiness, CoarseMatch};
@@ -173,7 +173,7 @@ pub(crate) fn scaled_penalties(params: &SgmParams, scale: f32) -> SgmParams {
 }
 
 /// The smallest disparity range [`Search::Auto`] searches coarse to fine.
-pub(crate) const AUTO_HIERARCHICAL_MIN_DISPARITIES: usize = 128;
+pub(crate) const AUTO_HIERARCHICAL_MIN_DISPARITIES: usize = 256;
 
 /// Whether `params.search` asks for the coarse-to-fine search on a `width × height` pair.
 fn searches_hierarchically(width: usize, height: usize, params: &SgmParams) -> bool {
@@ -241,14 +241,22 @@ fn match_coarse_to_fine(
     let t1 = std::time::Instant::now();
     drop((coarse_left, coarse_right));
     let bands = Bands::from_coarse(&coarse.disparity, width, height, range);
-    // The sums of the rows one pass finished before the other, at most the whole band volume.
-    if params.max_memory.is_some_and(|limit| 2 * bands.entries() + 24 * width * height > limit) {
+    // The sums of the rows one pass finished before the other, at most the whole band volume
+    // (none in single-pass mode).
+    let volume = if params.single_pass { 0 } else { 2 * bands.entries() };
+    if params.max_memory.is_some_and(|limit| volume + 24 * width * height > limit) {
         return None;
     }
     let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
     let inputs = aggregation_inputs(left, Some(right), census_left, census_right, params, &p2);
     let t2 = std::time::Instant::now();
-    let disparity = aggregate_bands(&inputs, &bands, crate::kernels::features().level);
+    let level = crate::kernels::features().level;
+    let disparity = if params.single_pass {
+        let plan = memory::plan(width, height, params);
+        stream_bands(&inputs, &bands, level, plan.stream_threads, plan.strips.overlap)
+    } else {
+        aggregate_bands(&inputs, &bands, level)
+    };
     if std::env::var_os("SD_DEBUG").is_some() {
         eprintln!(
             "DEBUG {width}x{height} coarse {:?} bands {:?} aggregate {:?} mean {}",
