@@ -181,3 +181,46 @@ fn confidence_and_disparity_channels_and_min_confidence() {
     bm.truncate(8);
     assert!(run_in(dir.path(), &bm).assert_error(2).contains("--min-confidence"));
 }
+
+#[test]
+fn search_is_chosen_by_flag_and_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let (l, r) = (slanted("left.png"), slanted("right.png"));
+    let stats = |search: &str| {
+        let file = dir.path().join(format!("{search}.json"));
+        let run = run_in(
+            dir.path(),
+            &[
+                s(&l),
+                s(&r),
+                "--max-disparity",
+                "64",
+                "--search",
+                search,
+                "--disparity",
+                "d.pfm",
+                "--stats",
+                s(&file),
+            ],
+        );
+        run.assert_success();
+        (json(&fs::read_to_string(&file).unwrap()), run.stdout)
+    };
+    let (full, _) = stats("full");
+    assert_eq!(full["matcher"]["search"], "full");
+    assert_eq!(full["matcher"]["mean_disparities_searched"], 64.0);
+    let (coarse_to_fine, summary) = stats("hierarchical");
+    let m = &coarse_to_fine["matcher"];
+    assert_eq!((m["search"].as_str(), m["search_levels"].as_u64()), (Some("hierarchical"), Some(1)));
+    assert!(m["mean_disparities_searched"].as_f64().unwrap() < 64.0, "{m}");
+    assert!(summary.contains("coarse to fine"), "{summary}");
+    // 64 disparities: the default searches the whole range.
+    let (auto, _) = stats("auto");
+    assert_eq!(auto["matcher"]["search"], "full");
+
+    let bad = run_in(dir.path(), &[s(&l), s(&r), "--search", "quick", "--disparity", "d.pfm"]);
+    assert!(bad.assert_error(2).contains("--search"), "{}", bad.stderr);
+    let bm =
+        run_in(dir.path(), &[s(&l), s(&r), "--matcher", "bm", "--search", "full", "--disparity", "d.pfm"]);
+    assert!(bm.assert_error(2).contains("search"), "{}", bm.stderr);
+}

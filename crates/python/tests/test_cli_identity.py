@@ -24,6 +24,9 @@ OPTIONS = [
     (dict(max_disparity=64, align=False, paths=4, p2=120, lr_max_diff=2, fill=True),
      ["--max-disparity", "64", "--no-align", "--paths", "4", "--p2", "120", "--lr-max-diff", "2", "--fill"]),
     (dict(max_disparity=64, max_memory="8M"), ["--max-disparity", "64", "--max-memory", "8M"]),
+    (dict(max_disparity=64, search="hierarchical"), ["--max-disparity", "64", "--search", "hierarchical"]),
+    (dict(max_disparity=64, preset="fast", search="hierarchical"),
+     ["--max-disparity", "64", "--preset", "fast", "--search", "hierarchical"]),
     (dict(), []),
 ]
 

@@ -128,7 +128,7 @@ def test_a_matcher_is_shared_between_threads(pair, matcher):
 def test_help_lists_every_option_with_its_default():
     text = sd.Matcher.__doc__
     for option in ["min_disparity", "max_disparity", "matcher", "preset", "fill", "speckle_size", "edge_snap",
-                   "confidence", "min_confidence", "single_pass", "paths", "p1", "p2", "uniqueness",
+                   "confidence", "min_confidence", "single_pass", "paths", "search", "p1", "p2", "uniqueness",
                    "lr_max_diff", "lr_check", "subpixel", "block_size", "bm_cost", "align", "max_memory",
                    "max_pixels", "threads"]:
         assert f"``{option}`` [" in text, option
@@ -143,3 +143,5 @@ def test_help_lists_every_option_with_its_default():
     assert sd.Matcher(fill=True).params["speckle_size"] == 400
     assert sd.Matcher(fill=True).params["lr_max_diff"] == 1.0
     assert sd.Matcher(preset="fast").params["paths"] == 4
+    assert sd.Matcher().params["search"] == "auto"
+    assert sd.Matcher(search="hierarchical").params["search"] == "hierarchical"
