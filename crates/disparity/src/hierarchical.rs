@@ -597,8 +597,7 @@ fn select_row(
         scratch.right_cost.resize(width, u16::MAX);
         scratch.right_index.clear();
         scratch.right_index.resize(width, NONE);
-        for x in 0..width {
-            let o = offsets[x];
+        for (x, &o) in offsets.iter().enumerate() {
             let c = costs(x);
             let ks = feasible_lanes(x, width, sel.range, o, c.len());
             if ks.is_empty() {
