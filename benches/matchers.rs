@@ -1,13 +1,14 @@
 //! Matcher throughput: one group per SGM stage and end to end (SGM 8 and 4 paths in two passes,
-//! 5 and 3 paths in one pass, block matching), at 640×480, 1280×720 and 1920×1080 with 64, 128
-//! and 256 disparities. Throughput is W·H·D elements (disparity evaluations) per second.
+//! 5 and 3 paths in one pass, each with the full search; 8 paths and 3 paths in one pass also
+//! coarse to fine, `-hierarchical`; block matching), at 640×480, 1280×720 and 1920×1080 with 64,
+//! 128 and 256 disparities. Throughput is W·H·D elements (disparity evaluations) per second.
 //! `cargo bench --bench matchers` (add a filter such as `-- sgm_end_to_end/3path` to run a part).
 //! `STEREO_DISPARITY_SIMD=scalar|avx2` caps the kernels.
 
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use stereo_disparity::{stages, BmParams, DisparityRange, GrayImage, PathCount, SgmParams};
+use stereo_disparity::{stages, BmParams, DisparityRange, GrayImage, PathCount, Search, SgmParams};
 
 const SIZES: [(usize, usize); 3] = [(640, 480), (1280, 720), (1920, 1080)];
 const RANGES: [i32; 3] = [64, 128, 256];
@@ -44,7 +45,12 @@ fn cases() -> impl Iterator<Item = (usize, usize, i32, String)> {
 }
 
 fn sgm_params(nd: i32, paths: PathCount) -> SgmParams {
-    SgmParams { range: DisparityRange::new(0, nd).unwrap(), paths, ..SgmParams::default() }
+    SgmParams {
+        range: DisparityRange::new(0, nd).unwrap(),
+        paths,
+        search: Search::Full,
+        ..SgmParams::default()
+    }
 }
 
 fn stage_benches(c: &mut Criterion) {
@@ -92,13 +98,15 @@ fn end_to_end(c: &mut Criterion) {
         let (left, right) = pair(w, h, nd);
         group.throughput(Throughput::Elements((w * h * nd as usize) as u64));
         // The two-pass modes and the single-pass ones (`--preset fast` is "3path-1pass").
-        for (name, paths, single_pass) in [
-            ("8path", PathCount::Eight, false),
-            ("4path", PathCount::Four, false),
-            ("5path-1pass", PathCount::Eight, true),
-            ("3path-1pass", PathCount::Four, true),
+        for (name, paths, single_pass, search) in [
+            ("8path", PathCount::Eight, false, Search::Full),
+            ("8path-hierarchical", PathCount::Eight, false, Search::Hierarchical),
+            ("4path", PathCount::Four, false, Search::Full),
+            ("5path-1pass", PathCount::Eight, true, Search::Full),
+            ("3path-1pass", PathCount::Four, true, Search::Full),
+            ("3path-1pass-hierarchical", PathCount::Four, true, Search::Hierarchical),
         ] {
-            let params = SgmParams { single_pass, ..sgm_params(nd, paths) };
+            let params = SgmParams { single_pass, search, ..sgm_params(nd, paths) };
             group.bench_function(BenchmarkId::new(name, &id), |b| {
                 b.iter(|| stereo_disparity::sgm(&left, &right, &params).unwrap())
             });

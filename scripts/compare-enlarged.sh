@@ -1,15 +1,18 @@
 #!/usr/bin/env bash
-# Our SGM modes beside OpenCV on the 2x/4x enlarged Middlebury scenes (issue 3): makes the
-# enlarged pairs in $OUT with scripts/enlarge.py, runs OpenCV through the shared tool's
-# `stereo_eval.py opencv` and our CLI per mode, scores ours with `stereo_eval.py score`, and
-# prints one table of ms (match time, timings_ms.match of the stats JSON), MDE/s and bad2.
+# Our SGM modes beside OpenCV on the Middlebury scenes at 1x, 2x and 4x and on a 1920x1080 pair
+# with 256 disparities (issues 3 and 17): makes the pairs in $OUT with scripts/enlarge.py, runs
+# OpenCV through the shared tool's `stereo_eval.py opencv` (colour modes for accuracy, grey
+# SGBM_3WAY, its fastest configuration, for speed), our CLI per mode, scores ours with
+# `stereo_eval.py score`, and prints one table: match ms (median of RUNS, timings_ms.match of the
+# stats JSON), bad2, OpenCV's grey SGBM_3WAY ms over ours ("speed", >1 = we are faster) and our
+# bad2 over the best OpenCV mode's ("bad2 ratio"), all from the same run.
 # Not run in CI (needs the Python venv with numpy + opencv, takes many minutes).
 #
 # Usage: scripts/compare-enlarged.sh [RUNS=3] [THREADS=2]
 # Env: PY (python with numpy/cv2, default /tmp/peer-venv/bin/python), OUT (default /tmp/enlarged),
-#      FACTORS (default 2,4), SCENES (comma list), MODES (our CLI arg sets separated by ';',
-#      default "--preset balanced;--preset fast"), OPENCV (default SGBM_3WAY,HH),
-#      NO_BUILD=1.
+#      FACTORS (default 1,2,4), SCENES (comma list of generated names, e.g. conesx4,cones-1080p),
+#      MODES (our CLI arg sets separated by ';', default "--preset balanced;--preset fast"),
+#      OPENCV (colour modes, default SGBM_3WAY,HH,SGBM), NO_BUILD=1, NO_ENLARGE=1.
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
 RUNS="${1:-3}"; THREADS="${2:-2}"
@@ -18,41 +21,58 @@ OUT="${OUT:-/tmp/enlarged}"
 TOOL_DIR="${TOOL_DIR:-$ROOT/../shared/tools/opencv-compare}"
 EVAL="$TOOL_DIR/stereo_eval.py"
 MODES="${MODES:---preset balanced;--preset fast}"
-OPENCV="${OPENCV:-SGBM_3WAY,HH}"
+OPENCV="${OPENCV:-SGBM_3WAY,HH,SGBM}"
 cd "$ROOT"
 [ -n "${NO_BUILD:-}" ] || cargo build --release --bin stereo-depth >&2
 BIN="$ROOT/target/release/stereo-depth"
 RIG="--baseline 100 --focal 4 --pixel 2"
-"$PY" scripts/enlarge.py --out "$OUT" --factors "${FACTORS:-2,4}" ${SCENES:+--scenes "$SCENES"}
-printf '%-12s %-28s %9s %8s %7s\n' scene matcher match_ms MDE/s bad2
+[ -n "${NO_ENLARGE:-}" ] || "$PY" scripts/enlarge.py --out "$OUT" --factors "${FACTORS:-1,2,4}" >&2
+results="$OUT/results.tsv"
+: > "$results"
 tail -n +2 "$OUT/scenes.tsv" | while IFS=$'\t' read -r name ndisp w h; do
+  [ -z "${SCENES:-}" ] || [[ ",$SCENES," == *",$name,"* ]] || continue
   dir="$OUT/$name"
-  "$PY" "$EVAL" opencv --left "$dir/left.png" --right "$dir/right.png" --gt "$dir/gt.pfm" \
-    --ndisp "$ndisp" --runs "$RUNS" --threads "$THREADS" --matchers "$OPENCV" --name "$name" \
-    --json "$dir/opencv.json" >/dev/null
-  "$PY" - "$dir/opencv.json" "$name" <<'PYEOF'
+  for colour in colour grey; do
+    extra=(); matchers="$OPENCV"
+    if [ "$colour" = grey ]; then extra=(--gray); matchers=SGBM_3WAY; fi
+    "$PY" "$EVAL" opencv --left "$dir/left.png" --right "$dir/right.png" --gt "$dir/gt.pfm" \
+      --ndisp "$ndisp" --runs "$RUNS" --threads "$THREADS" --matchers "$matchers" --name "$name" \
+      "${extra[@]}" --json "$dir/opencv-$colour.json" >/dev/null
+    "$PY" - "$dir/opencv-$colour.json" "$name" >> "$results" <<'PYEOF'
 import json, sys
-doc = json.load(open(sys.argv[1]))
-for r in doc["results"]:
-    m = r.get("metrics", {})
-    print(f"{sys.argv[2]:<12} {'opencv ' + r['matcher']:<28} {r['ms_median']:9.1f} {r.get('mde_s', 0):8.0f} {m.get('bad2', float('nan')):7.2f}")
+for r in json.load(open(sys.argv[1]))["results"]:
+    print(f"{sys.argv[2]}\topencv {r['matcher']}\t{r['ms_median']:.1f}\t{r.get('metrics', {}).get('bad2', float('nan')):.2f}")
 PYEOF
+  done
   IFS=';' read -ra mode_list <<< "$MODES"
   for mode in "${mode_list[@]}"; do
     times=()
     for _ in $(seq "$RUNS"); do
       # shellcheck disable=SC2086
       "$BIN" "$dir/left.png" "$dir/right.png" $RIG --threads "$THREADS" --max-disparity "$ndisp" \
-        --disparity "$dir/ours.pfm" --stats "$dir/ours.json" -o /tmp/stereo-depth-enlarged.exr --quiet $mode >/dev/null
+        --disparity "$dir/ours.pfm" --stats "$dir/ours.json" -o /tmp/stereo-depth-enlarged.exr --quiet $mode >/dev/null 2>&1
       times+=("$("$PY" -c 'import json,sys; print(json.load(open(sys.argv[1]))["timings_ms"]["match"])' "$dir/ours.json")")
     done
     ms="$(printf '%s\n' "${times[@]}" | sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')"
     "$PY" "$EVAL" score --est "$dir/ours.pfm" --gt "$dir/gt.pfm" --ms "$ms" --ndisp "$ndisp" \
       --json "$dir/ours-score.json" >/dev/null
-    "$PY" - "$dir/ours-score.json" "$name" "ours $mode" <<'PYEOF'
+    search="$("$PY" -c 'import json,sys; m=json.load(open(sys.argv[1]))["matcher"]; print(m.get("search", "full"))' "$dir/ours.json")"
+    "$PY" - "$dir/ours-score.json" "$name" "ours $mode ($search)" >> "$results" <<'PYEOF'
 import json, sys
 r = json.load(open(sys.argv[1]))["result"]
-print(f"{sys.argv[2]:<12} {sys.argv[3]:<28} {r['ms_median']:9.1f} {r['mde_s']:8.0f} {r['metrics']['bad2']:7.2f}")
+print(f"{sys.argv[2]}\t{sys.argv[3]}\t{r['ms_median']:.1f}\t{r['metrics']['bad2']:.2f}")
 PYEOF
   done
 done
+"$PY" - "$results" <<'PYEOF'
+import sys
+rows = [l.rstrip("\n").split("\t") for l in open(sys.argv[1]) if l.strip()]
+print(f"{'scene':<14} {'matcher':<44} {'match ms':>9} {'bad2':>6} {'speed':>6} {'bad2 ratio':>10}")
+for scene in dict.fromkeys(r[0] for r in rows):
+    mine = [r for r in rows if r[0] == scene]
+    grey = [float(r[2]) for r in mine if r[1] == "opencv SGBM-SGBM_3WAY-grey"]
+    best = min((float(r[3]) for r in mine if r[1].startswith("opencv")), default=float("nan"))
+    for _, matcher, ms, bad2 in mine:
+        speed = grey[0] / float(ms) if grey else float("nan")
+        print(f"{scene:<14} {matcher:<44} {float(ms):9.1f} {float(bad2):6.2f} {speed:6.2f} {float(bad2) / best:10.2f}")
+PYEOF

@@ -5,7 +5,9 @@ For each scene and factor k (default 2 and 4): left/right upsampled k times (bic
 ground truth upsampled (nearest) with its disparities multiplied by k, written as PFM (0 = unknown
 stays 0 -> inf in PFM, so the shared stereo_eval.py treats it as invalid). Output goes to
 OUT/<scene>x<k>/{left.png,right.png,gt.pfm} plus OUT/scenes.tsv (scene, ndisp = k * suggested).
-Never written into the repository.
+Plus one camera-sized pair (--hd, default cones): scaled to 1920 px wide and cropped to the
+middle 1080 rows, searched over 256 disparities (OUT/cones-1080p). Never written into the
+repository.
 
 Usage: /tmp/peer-venv/bin/python scripts/enlarge.py [--data ../shared/data] [--out /tmp/enlarged] [--factors 2,4]
 """
@@ -31,6 +33,9 @@ def main():
     ap.add_argument("--out", default="/tmp/enlarged")
     ap.add_argument("--factors", default="2,4")
     ap.add_argument("--scenes", default=None, help="comma list (default: all)")
+    ap.add_argument("--hd", default="cones",
+                    help="scene also scaled to 1920 px wide and cropped to 1920x1080 rows, 256 disparities, "
+                         "as <scene>-1080p ('' for none)")
     args = ap.parse_args()
     factors = [int(k) for k in args.factors.split(",")]
     os.makedirs(args.out, exist_ok=True)
@@ -59,6 +64,23 @@ def main():
                 write_pfm(os.path.join(o, "gt.pfm"), big)
                 rows.append((name, int(r["suggested_ndisp"]) * k, size[0], size[1]))
                 print(f"{name}: {size[0]}x{size[1]} ndisp {int(r['suggested_ndisp']) * k}", file=sys.stderr)
+            if r["scene"] == args.hd:
+                # A camera-sized pair: 1920 px wide (disparities scaled alike), the middle 1080 rows.
+                f = 1920 / left.shape[1]
+                size = (1920, round(left.shape[0] * f))
+                if size[1] < 1080:
+                    continue
+                top = (size[1] - 1080) // 2
+                name = f"{r['scene']}-1080p"
+                o = os.path.join(args.out, name)
+                os.makedirs(o, exist_ok=True)
+                for view, img in (("left", left), ("right", right)):
+                    big = cv2.resize(img, size, interpolation=cv2.INTER_CUBIC)[top:top + 1080]
+                    cv2.imwrite(os.path.join(o, f"{view}.png"), big)
+                big = cv2.resize(gt, size, interpolation=cv2.INTER_NEAREST)[top:top + 1080] * f
+                write_pfm(os.path.join(o, "gt.pfm"), big)
+                rows.append((name, 256, 1920, 1080))
+                print(f"{name}: 1920x1080 ndisp 256", file=sys.stderr)
     with open(os.path.join(args.out, "scenes.tsv"), "w") as f:
         f.write("scene\tndisp\twidth\theight\n")
         for row in rows:

@@ -112,9 +112,10 @@ pub enum Search {
     /// Coarse to fine (tSGM): a half-resolution match over the whole range, then each pixel only
     /// in a band around the coarse result. Time and memory scale with the bands, not the range.
     Hierarchical,
-    /// Hierarchical for ranges of 256 disparities or more, where it measured both faster and
-    /// more accurate than the full search; full below (there the hierarchical search is as
-    /// accurate or more, but slower: docs/performance.md).
+    /// Hierarchical for ranges of 256 disparities or more, and from 128 on images of 2
+    /// megapixels or more, where it measured more accurate than the full search and about as
+    /// fast or faster; full otherwise (there the hierarchical search is about as accurate but
+    /// slower: docs/performance.md).
     #[default]
     Auto,
 }

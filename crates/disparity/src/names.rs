@@ -96,7 +96,7 @@ named!(Subpixel, "subpixel", [
 named!(Search, "search", [
     Full => "full", "every pixel over the whole disparity range";
     Hierarchical => "hierarchical", "coarse to fine: each pixel in a band around a half-resolution match";
-    Auto => "auto", "hierarchical from 256 disparities, full below (the default)";
+    Auto => "auto", "hierarchical from 256 disparities (128 from 2 megapixels), else full (the default)";
 ]);
 
 named!(BmCost, "block-matching cost", [

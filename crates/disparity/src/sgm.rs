@@ -172,15 +172,25 @@ pub(crate) fn scaled_penalties(params: &SgmParams, scale: f32) -> SgmParams {
     SgmParams { p1: scale(params.p1), p2: scale(params.p2).min(MAX_P2), ..params.clone() }
 }
 
-/// The smallest disparity range [`Search::Auto`] searches coarse to fine.
+/// The smallest disparity range [`Search::Auto`] searches coarse to fine …
 pub(crate) const AUTO_HIERARCHICAL_MIN_DISPARITIES: usize = 256;
+/// … or, on images of at least [`AUTO_HIERARCHICAL_MIN_PIXELS`], this range: there the full
+/// search loses accuracy (measured on the 4× enlarged venus, 1736×1532 with 128 disparities:
+/// bad2 19.3 full, 13.5 coarse to fine, at 0.9× the speed; docs/performance.md).
+pub(crate) const AUTO_HIERARCHICAL_MIN_DISPARITIES_LARGE: usize = 128;
+pub(crate) const AUTO_HIERARCHICAL_MIN_PIXELS: usize = 2_000_000;
 
 /// Whether `params.search` asks for the coarse-to-fine search on a `width × height` pair.
 fn searches_hierarchically(width: usize, height: usize, params: &SgmParams) -> bool {
     let wanted = match params.search {
         Search::Full => false,
         Search::Hierarchical => true,
-        Search::Auto => params.range.count() >= AUTO_HIERARCHICAL_MIN_DISPARITIES,
+        Search::Auto => {
+            let nd = params.range.count();
+            nd >= AUTO_HIERARCHICAL_MIN_DISPARITIES
+                || (nd >= AUTO_HIERARCHICAL_MIN_DISPARITIES_LARGE
+                    && width * height >= AUTO_HIERARCHICAL_MIN_PIXELS)
+        }
     };
     // The half-resolution pair must still hold a census window.
     wanted && width / 2 >= params.census.width && height / 2 >= params.census.height
@@ -236,9 +246,7 @@ fn match_coarse_to_fine(
     };
     let (coarse_left, coarse_right) =
         rayon::join(|| crate::radiometric::downsample(left, 2), || crate::radiometric::downsample(right, 2));
-    let t0 = std::time::Instant::now();
     let coarse = sgm_detailed(&coarse_left, &coarse_right, &coarse_params).ok()?;
-    let t1 = std::time::Instant::now();
     drop((coarse_left, coarse_right));
     let bands = Bands::from_coarse(&coarse.disparity, width, height, range);
     // The sums of the rows one pass finished before the other, at most the whole band volume
@@ -249,7 +257,6 @@ fn match_coarse_to_fine(
     }
     let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
     let inputs = aggregation_inputs(left, Some(right), census_left, census_right, params, &p2);
-    let t2 = std::time::Instant::now();
     let level = crate::kernels::features().level;
     let disparity = if params.single_pass {
         let plan = memory::plan(width, height, params);
@@ -257,15 +264,6 @@ fn match_coarse_to_fine(
     } else {
         aggregate_bands(&inputs, &bands, level)
     };
-    if std::env::var_os("SD_DEBUG").is_some() {
-        eprintln!(
-            "DEBUG {width}x{height} coarse {:?} bands {:?} aggregate {:?} mean {}",
-            t1 - t0,
-            t2 - t1,
-            t2.elapsed(),
-            bands.mean_searched(range)
-        );
-    }
     let report = SearchReport {
         hierarchical: true,
         levels: coarse.search.levels + 1,

@@ -112,3 +112,21 @@ fn coarse_to_fine_does_not_depend_on_the_thread_count() {
         );
     }
 }
+
+#[test]
+fn auto_searches_coarse_to_fine_from_128_disparities_on_large_images() {
+    // 1600×1250 (2 megapixels): a flat textured plane is enough to see the choice.
+    let scene = stereo_scene::render(&SceneParams {
+        width: 1600,
+        height: 1250,
+        plane: (20.0, 0.0, 0.0),
+        foreground: None,
+        supersampling: 1,
+        ..SceneParams::default()
+    });
+    for (max, hierarchical) in [(127, false), (128, true)] {
+        let range = DisparityRange::new(0, max).unwrap();
+        let out = sgm_detailed(&scene.left, &scene.right, &params(range, Search::Auto)).unwrap();
+        assert_eq!(out.search.hierarchical, hierarchical, "range {max}");
+    }
+}

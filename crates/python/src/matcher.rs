@@ -43,7 +43,7 @@ use crate::input::{Input, View};
 /// - ``single_pass`` [False]: SGM: aggregate in one top-down pass (faster, less memory).
 /// - ``paths`` [None: 8, 4 with preset "fast"]: SGM aggregation paths, 4 or 8.
 /// - ``search`` [None: "auto"]: "full", "hierarchical" (coarse to fine) or "auto" (hierarchical
-///   from 256 disparities, full below).
+///   from 256 disparities, or 128 from 2 megapixels; else full).
 /// - ``p1`` [None: 20], ``p2`` [None: 80]: SGM penalties, in census bits.
 /// - ``uniqueness`` [None: 0 (sgm), 10 (bm)]: uniqueness margin, percent; 0 disables it.
 /// - ``lr_max_diff`` [None: 3 (sgm; 1 with fill), 1 (bm)]: left-right check tolerance, px.
