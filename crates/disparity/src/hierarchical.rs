@@ -376,12 +376,7 @@ impl<'a, 'i> Pass<'a, 'i> {
         starts(lanes, 2, &mut self.cur_starts);
         let total = self.sum_starts[width];
         self.cost.resize(total, 0);
-        let ad = inputs.ad.map(|(left, right, weight, cap)| {
-            self.bt_left.fill(left.row(y), false);
-            self.bt_right.fill(right.row(y), true);
-            (weight, cap)
-        });
-        let ad = ad.map(|(weight, cap)| AdRows { left: &self.bt_left, right: &self.bt_right, weight, cap });
+        let ad = ad_rows(inputs, y, &mut self.bt_left, &mut self.bt_right);
         let (cl, cr) = (inputs.census_left.row(y), inputs.census_right.row(y));
         let band_row = BandRow { offsets, lanes, starts: &self.sum_starts };
         let features = Features::capped(self.level);
@@ -511,6 +506,20 @@ impl<'a, 'i> Pass<'a, 'i> {
             std::mem::swap(&mut self.h_prev, &mut self.h_cur);
         }
     }
+}
+
+/// Row `y`'s AD-census intensity-term inputs (if the cost has the term), filled into `left` and
+/// `right`.
+fn ad_rows<'b>(
+    inputs: &Inputs<'_>,
+    y: usize,
+    left: &'b mut BtRow,
+    right: &'b mut BtRow,
+) -> Option<AdRows<'b>> {
+    let (l, r, weight, cap) = inputs.ad?;
+    left.fill(l.row(y), false);
+    right.fill(r.row(y), true);
+    Some(AdRows { left, right, weight, cap })
 }
 
 /// `v` with [`PAD`] at both ends (a pixel's path-cost vector before its step fills the rest).
@@ -740,12 +749,7 @@ mod tests {
                 let (offsets, lanes) = bands.row(y);
                 starts(lanes, 0, &mut p.sum_starts);
                 let mut c = vec![0u16; p.sum_starts[w]];
-                let ad = inputs.ad.map(|(l, r, weight, cap)| {
-                    p.bt_left.fill(l.row(y), false);
-                    p.bt_right.fill(r.row(y), true);
-                    (weight, cap)
-                });
-                let ad = ad.map(|(weight, cap)| AdRows { left: &p.bt_left, right: &p.bt_right, weight, cap });
+                let ad = ad_rows(inputs, y, &mut p.bt_left, &mut p.bt_right);
                 let (cl, cr) = (inputs.census_left.row(y), inputs.census_right.row(y));
                 let row = BandRow { offsets, lanes, starts: &p.sum_starts };
                 crate::kernels::scalar::cost_bands_scalar(

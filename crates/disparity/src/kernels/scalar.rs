@@ -74,30 +74,13 @@ pub(crate) fn cost_row_scalar(
     ad: Option<AdRows<'_>>,
     out: &mut [u16],
 ) {
-    let width = left.len();
     let lanes = padded_lanes(nd);
     for (x, costs) in out.chunks_exact_mut(lanes).enumerate() {
-        let l = left[x];
-        // Disparity index k has its right pixel at x - min - k: inside the row for k in lo..hi.
-        let (lo, hi, first) = feasible(x, width, min_disparity, nd);
-        costs[..lo].fill(worst);
-        for (k, c) in costs[lo..hi].iter_mut().enumerate() {
-            let xr = (first - (lo + k) as i64) as usize;
-            *c = (l ^ right[xr]).count_ones() as u16;
-            if let Some(ad) = ad {
-                let il = BT_PAD + x;
-                let ir = BT_PAD + width - 1 - xr;
-                let at = |r: &BtRow, i: usize| (r.value[i], r.lo[i], r.hi[i]);
-                let term = u16::from(bt(at(ad.left, il), at(ad.right, ir))) * ad.weight;
-                *c += term.min(ad.cap);
-            }
-        }
-        costs[hi..nd].fill(worst);
-        costs[nd..].fill(JUNK_COST);
+        cost_pixel_scalar(left, right, x, min_disparity, nd, worst, ad, costs);
     }
 }
 
-/// The readable reference of [`super::cost_bands`]: [`cost_row_scalar`]'s pixel loop over each
+/// The readable reference of [`super::cost_bands`]: [`cost_row_scalar`]'s pixel step over each
 /// pixel's own band (`nd` real disparities up to `range_max`, [`JUNK_COST`] past it).
 pub(crate) fn cost_bands_scalar(
     left: &[u64],
@@ -108,27 +91,45 @@ pub(crate) fn cost_bands_scalar(
     ad: Option<AdRows<'_>>,
     out: &mut [u16],
 ) {
-    let width = left.len();
-    for x in 0..width {
+    for x in 0..left.len() {
         let (o, n) = (bands.offsets[x], usize::from(bands.lanes[x]));
         let nd = ((range_max - o) as usize).min(n);
-        let costs = &mut out[bands.starts[x]..bands.starts[x] + n];
-        let (lo, hi, first) = feasible(x, width, o, nd);
-        costs[..lo].fill(worst);
-        for (k, c) in costs[lo..hi].iter_mut().enumerate() {
-            let xr = (first - (lo + k) as i64) as usize;
-            *c = (left[x] ^ right[xr]).count_ones() as u16;
-            if let Some(ad) = ad {
-                let il = BT_PAD + x;
-                let ir = BT_PAD + width - 1 - xr;
-                let at = |r: &BtRow, i: usize| (r.value[i], r.lo[i], r.hi[i]);
-                let term = u16::from(bt(at(ad.left, il), at(ad.right, ir))) * ad.weight;
-                *c += term.min(ad.cap);
-            }
-        }
-        costs[hi..nd].fill(worst);
-        costs[nd..].fill(JUNK_COST);
+        cost_pixel_scalar(left, right, x, o, nd, worst, ad, &mut out[bands.starts[x]..bands.starts[x] + n]);
     }
+}
+
+/// Pixel `x`'s costs from disparity `min_disparity` into `costs`: `nd` real ones (`worst` where
+/// the right pixel is outside the row), [`JUNK_COST`] in the lanes past them.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn cost_pixel_scalar(
+    left: &[u64],
+    right: &[u64],
+    x: usize,
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    costs: &mut [u16],
+) {
+    let width = left.len();
+    let l = left[x];
+    // Disparity index k has its right pixel at x - min - k: inside the row for k in lo..hi.
+    let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+    costs[..lo].fill(worst);
+    for (k, c) in costs[lo..hi].iter_mut().enumerate() {
+        let xr = (first - (lo + k) as i64) as usize;
+        *c = (l ^ right[xr]).count_ones() as u16;
+        if let Some(ad) = ad {
+            let il = BT_PAD + x;
+            let ir = BT_PAD + width - 1 - xr;
+            let at = |r: &BtRow, i: usize| (r.value[i], r.lo[i], r.hi[i]);
+            let term = u16::from(bt(at(ad.left, il), at(ad.right, ir))) * ad.weight;
+            *c += term.min(ad.cap);
+        }
+    }
+    costs[hi..nd].fill(worst);
+    costs[nd..].fill(JUNK_COST);
 }
 
 /// The readable reference of [`super::cost_row_u8`] (the loop of [`cost_row_scalar`] in 8 bits).
