@@ -247,7 +247,7 @@ fn stream_strip_generic(
     let mut sel = SelectScratch::default();
     let mut sum = Vec::new();
     for y in y0.saturating_sub(overlap)..y0 + rows.len() / width {
-        pass.row(y, &mut sum, false);
+        pass.row(y, &mut sum);
         if y >= y0 {
             pass.leftward(y, &mut sum);
             select_row(inputs, bands, y, &sum, level, &mut sel, &mut rows[(y - y0) * width..][..width]);
@@ -288,19 +288,10 @@ fn run_pass_generic(
     let mut sum = Vec::new();
     for i in 0..height {
         let y = if forward { i } else { height - 1 - i };
-        // Where the other pass already stored this row, add straight onto its sums.
-        let stored = lock(&shared.slots[y]).take();
-        if let Some(mut other) = stored {
-            pass.row(y, &mut other, true);
-            select_row(inputs, bands, y, &other, level, &mut sel, &mut lock(&shared.rows[y]));
-            lock(&shared.spare).push(other);
-            continue;
-        }
-        pass.row(y, &mut sum, false);
+        pass.row(y, &mut sum);
         let other = {
             let mut slot = lock(&shared.slots[y]);
             match slot.take() {
-                // The other pass finished the row meanwhile (only near where the passes meet).
                 Some(other) => Some(other),
                 None => {
                     *slot = Some(std::mem::take(&mut sum));
@@ -314,7 +305,8 @@ fn run_pass_generic(
                 *s = s.wrapping_add(*o);
             }
             lock(&shared.spare).push(other);
-            select_row(inputs, bands, y, &sum, level, &mut sel, &mut lock(&shared.rows[y]));
+            let mut out = lock(&shared.rows[y]);
+            select_row(inputs, bands, y, &sum, level, &mut sel, &mut out);
         }
     }
 }
@@ -374,10 +366,9 @@ impl<'a, 'i> Pass<'a, 'i> {
         }
     }
 
-    /// Aggregates row `y` (the next row of the pass) into `sum`: its path sums, band after band,
-    /// stored, or with `accumulate` added to the sums `sum` holds.
+    /// Aggregates row `y` (the next row of the pass) into `sum`: its path sums, band after band.
     #[inline(always)]
-    fn row(&mut self, y: usize, sum: &mut Vec<u16>, accumulate: bool) {
+    fn row(&mut self, y: usize, sum: &mut Vec<u16>) {
         let inputs = self.inputs;
         let width = self.bands.width;
         let (offsets, lanes) = self.bands.row(y);
@@ -397,7 +388,7 @@ impl<'a, 'i> Pass<'a, 'i> {
             row.resize(padded, PAD);
             mins.resize(width, 0);
         }
-        // Every entry is written (or added to) by the path step of its pixel.
+        // Every entry is written by the first path step of its pixel.
         sum.resize(total, 0);
         let image = inputs.image.row(y);
         let prev_image = self.prev_y.map(|py| inputs.image.row(py));
@@ -456,22 +447,15 @@ impl<'a, 'i> Pass<'a, 'i> {
                 );
                 let outs = [h_out, c0, c1, c2];
                 let ins = [h_in, row_ins[0], row_ins[1], row_ins[2]];
-                let m = kernels::path_step::<4>(self.level, cost, inputs.p1, ins, outs, s, accumulate);
+                let m = kernels::path_step::<4>(self.level, cost, inputs.p1, ins, outs, s, false);
                 for k in 0..3 {
                     self.cur_min[k][x] = m[k + 1];
                 }
                 m[0]
             } else {
                 let outs = [h_out, with_pads(&mut self.cur[0][st..st + n + 2])];
-                let m = kernels::path_step::<2>(
-                    self.level,
-                    cost,
-                    inputs.p1,
-                    [h_in, row_ins[0]],
-                    outs,
-                    s,
-                    accumulate,
-                );
+                let m =
+                    kernels::path_step::<2>(self.level, cost, inputs.p1, [h_in, row_ins[0]], outs, s, false);
                 self.cur_min[0][x] = m[1];
                 m[0]
             };
@@ -841,14 +825,14 @@ mod tests {
         let mut sums: Vec<Vec<u16>> = (0..bands.height)
             .map(|y| {
                 let mut s = Vec::new();
-                forward.row(y, &mut s, false);
+                forward.row(y, &mut s);
                 s
             })
             .collect();
         let mut backward = Pass::new(inputs, bands, false, level);
         let mut b = Vec::new();
         for y in (0..bands.height).rev() {
-            backward.row(y, &mut b, false);
+            backward.row(y, &mut b);
             for (s, b) in sums[y].iter_mut().zip(&b) {
                 *s = s.wrapping_add(*b);
             }
