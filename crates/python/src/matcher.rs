@@ -254,7 +254,7 @@ impl Matcher {
     /// Like ``compute``, with everything the pipeline computed: a ``DetailedResult`` with
     /// ``disparity``, ``confidence`` (with ``confidence=True`` or ``min_confidence``, else None),
     /// ``filled`` (bool mask of the pixels a dense fill invented), ``timings_ms``,
-    /// ``rectification``, ``adaptation`` and ``range``.
+    /// ``rectification``, ``adaptation``, ``search`` and ``range``.
     fn compute_detailed<'py>(
         &self,
         py: Python<'py>,
@@ -300,6 +300,16 @@ impl Matcher {
             }
             None => None,
         };
+        let search = match &result.search {
+            Some(r) => {
+                let d = PyDict::new(py);
+                d.set_item("search", if r.hierarchical { "hierarchical" } else { "full" })?;
+                d.set_item("levels", r.levels)?;
+                d.set_item("mean_disparities_searched", r.mean_range)?;
+                Some(d.into_any().unbind())
+            }
+            None => None,
+        };
         Ok(DetailedResult {
             disparity: to_numpy(py, result.disparity).into_any().unbind(),
             confidence: result.confidence.map(|c| to_numpy(py, c).into_any().unbind()),
@@ -307,6 +317,7 @@ impl Matcher {
             timings_ms: timings.into_any().unbind(),
             rectification: rect.into_any().unbind(),
             adaptation,
+            search,
             range: (run.range.min, run.range.max),
             copied: (run.copied.0, run.copied.1),
         })
@@ -480,6 +491,9 @@ pub fn to_numpy<T: numpy::Element + Copy>(py: Python<'_>, image: Image<T>) -> Bo
 /// - ``rectification``: dict ``vertical_offset_px``, ``rotation_deg``, ``max_abs_offset_px``,
 ///   ``negative_disparity_share``, ``verdict``, ``compensated``.
 /// - ``adaptation``: dict of what SGM measured of the pair (None for BM).
+/// - ``search``: dict ``search`` ("full" or "hierarchical", the coarse-to-fine search), ``levels``
+///   (half-resolution levels below the full one) and ``mean_disparities_searched`` per pixel
+///   (None for BM).
 /// - ``range``: (min, max) disparities searched, ``min <= d < max``.
 /// - ``copied``: (left, right): whether an input array had to be copied to be read.
 #[pyclass(frozen, get_all, module = "stereo_depth")]
@@ -490,6 +504,7 @@ pub struct DetailedResult {
     timings_ms: Py<PyAny>,
     rectification: Py<PyAny>,
     adaptation: Option<Py<PyAny>>,
+    search: Option<Py<PyAny>>,
     range: (i32, i32),
     copied: (bool, bool),
 }

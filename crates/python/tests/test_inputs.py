@@ -95,7 +95,12 @@ def test_compute_detailed(pair):
     # Without fill nothing is filled; BM has no confidence.
     assert not sd.Matcher(max_disparity=32).compute_detailed(left, right).filled.any()
     bm = sd.Matcher(matcher="bm", max_disparity=32).compute_detailed(left, right)
-    assert bm.confidence is None and bm.adaptation is None
+    assert bm.confidence is None and bm.adaptation is None and bm.search is None
+    # Which search ran: the whole range at 32 disparities, bands with search="hierarchical".
+    assert res.search == {"search": "full", "levels": 0, "mean_disparities_searched": 32.0}
+    coarse = sd.Matcher(max_disparity=32, search="hierarchical").compute_detailed(left, right).search
+    assert coarse["search"] == "hierarchical" and coarse["levels"] == 1
+    assert 0 < coarse["mean_disparities_searched"] <= 32
 
 
 def test_default_range_is_a_quarter_of_the_width(pair):
