@@ -43,6 +43,19 @@ fn path_case() -> impl Strategy<Value = (usize, usize, u16, Vec<(Vec<u16>, u16, 
     })
 }
 
+/// The BT rows of two grey rows (the right one reversed, as the cost kernels read it).
+fn bt_rows(left: &[u16], right: &[u16]) -> (BtRow, BtRow) {
+    let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());
+    bt_left.fill(left, false);
+    bt_right.fill(right, true);
+    (bt_left, bt_right)
+}
+
+/// A random AD term (weight 0–8, cap 0–127) over `left` and `right`, if `ad` is given.
+fn ad_rows<'a>(ad: Option<(u8, u8)>, left: &'a BtRow, right: &'a BtRow) -> Option<AdRows<'a>> {
+    ad.map(|(weight, cap)| AdRows { left, right, weight: u16::from(weight % 9), cap: u16::from(cap % 128) })
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(300))]
 
@@ -93,14 +106,8 @@ proptest! {
             }
             row
         };
-        let grey_left = walk(width);
-        let grey_right = walk(width);
-        let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());
-        bt_left.fill(&grey_left, false);
-        bt_right.fill(&grey_right, true);
-        let ad = ad.map(|(weight, cap)| AdRows {
-            left: &bt_left, right: &bt_right, weight: u16::from(weight % 9), cap: u16::from(cap % 128),
-        });
+        let (bt_left, bt_right) = bt_rows(&walk(width), &walk(width));
+        let ad = ad_rows(ad, &bt_left, &bt_right);
         let worst = worst + ad.map_or(0, |a| a.cap);
         let lanes = padded_lanes(nd);
         let mut reference = vec![0u16; width * lanes];
@@ -126,12 +133,8 @@ proptest! {
         let right: Vec<u64> = (0..width).map(|_| next()).collect();
         let grey = |next: &mut dyn FnMut() -> u64| (0..width).map(|_| (next() % 65536) as u16).collect::<Vec<u16>>();
         let (grey_left, grey_right) = (grey(&mut next), grey(&mut next));
-        let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());
-        bt_left.fill(&grey_left, false);
-        bt_right.fill(&grey_right, true);
-        let ad = ad.map(|(weight, cap)| AdRows {
-            left: &bt_left, right: &bt_right, weight: u16::from(weight % 9), cap: u16::from(cap % 128),
-        });
+        let (bt_left, bt_right) = bt_rows(&grey_left, &grey_right);
+        let ad = ad_rows(ad, &bt_left, &bt_right);
         let worst = worst + ad.map_or(0, |a| a.cap);
         let max = min + nd;
         let mut offsets = Vec::new();
@@ -195,11 +198,7 @@ proptest! {
             }
             row
         };
-        let grey_left = walk(width);
-        let grey_right = walk(width);
-        let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());
-        bt_left.fill(&grey_left, false);
-        bt_right.fill(&grey_right, true);
+        let (bt_left, bt_right) = bt_rows(&walk(width), &walk(width));
         let ad = ad.map(|(weight, cap)| AdRows {
             left: &bt_left, right: &bt_right, weight: u16::from(weight % 17), cap: u16::from(cap % (MAX_AD_CAP + 1)),
         });
