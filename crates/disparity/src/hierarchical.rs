@@ -3,10 +3,10 @@
 //! upsampled coarse result, with the path aggregation running on those per-pixel bands. Time
 //! and memory then scale with the bands' widths, not with the range.
 //!
-//! A pixel's band is `offset .. offset + lanes` (`lanes` a multiple of [`LANES`], so the path
-//! step runs whole registers): the coarse disparities of its 3×3 coarse neighbourhood, doubled,
-//! plus [`MARGIN`] on each side; where none is valid, a 7×7 neighbourhood with twice the margin;
-//! where that has none either, the whole range. A path entering a pixel from a neighbour whose
+//! A pixel's band is `offset .. offset + lanes` (`lanes` a multiple of 16, so the path step runs
+//! whole registers): the span of the coarse disparities of its two nearest coarse pixels in each
+//! direction (a 2×2 block), doubled, plus [`MARGIN`] on each side; where none is valid, a 7×7
+//! neighbourhood with twice the margin; where that has none either, the whole range. A path entering a pixel from a neighbour whose
 //! band differs sees the neighbour's costs where the bands overlap and [`PAD`] (never the
 //! minimum) elsewhere, and the neighbour's minimum over its own band: outside its band a path
 //! can only arrive with the large-jump penalty.
@@ -21,8 +21,7 @@ use rayon::prelude::*;
 
 use crate::aggregate::Inputs;
 use crate::cost::{AdRows, BtRow};
-use crate::kernels::layout::BandRow;
-use crate::kernels::layout::{padded_lanes, PathIn, PAD};
+use crate::kernels::layout::{padded_lanes, BandRow, PathIn, PAD};
 use crate::kernels::{self, Features, Level};
 use crate::status::{tagged_nan, PixelStatus};
 use crate::winner::{ambiguous, refined_offset, Ties};
@@ -32,17 +31,16 @@ use crate::{DisparityMap, DisparityRange, PathCount};
 /// disparity `c` means `2c ± 1` at the fine level, and the coarse winner may be off by one.
 pub(crate) const MARGIN: i32 = 4;
 
-/// Per-pixel disparity bands of a `width × height` image. Every band lies within the whole
-/// range's padded lanes (`offset - min + lanes <= padded_lanes(count)`), so a band is a slice of
-/// the full cost row.
+/// Per-pixel disparity bands of a `width × height` image. Every band starts inside the range and
+/// lies within the whole range's padded lanes (`offset - min + lanes <= padded_lanes(count)`).
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Bands {
     pub width: usize,
     pub height: usize,
     /// The first disparity of each pixel's band.
     offset: Vec<i32>,
-    /// The band's width in disparities (a multiple of [`LANES`]; lanes past the range's end are
-    /// padding that never wins).
+    /// The band's width in disparities (a multiple of 16; lanes past the range's end are padding
+    /// that never wins).
     lanes: Vec<u16>,
 }
 
@@ -55,7 +53,6 @@ impl Bands {
     }
 
     /// Bands around `coarse`, a disparity map of the pair at half resolution (NaN where invalid).
-    /// Every fine pixel of a coarse pixel gets that coarse pixel's band.
     pub(crate) fn from_coarse(
         coarse: &DisparityMap,
         width: usize,
