@@ -224,6 +224,10 @@ pub struct AdaptationReport {
     /// How differently the two views render the same surfaces (8-bit grey levels); above 9 the
     /// intensity term is dropped.
     pub radiometric_difference_grey: Option<f32>,
+    /// What remains of it after mapping the right view's tones onto the left's (measured only
+    /// above 9); at 3 or less the intensity term compares the left view with the mapped right view.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tone_corrected_difference_grey: Option<f32>,
     /// Whether the AD-census intensity term was used (false: census alone).
     pub intensity_term: bool,
     /// Median census Hamming distance at the true match (bits); above 8 P1/P2 are raised.
@@ -330,6 +334,7 @@ impl MatcherReport {
                 fill: p.fill,
                 adaptation: adaptation.map(|a| AdaptationReport {
                     radiometric_difference_grey: a.radiometric_difference,
+                    tone_corrected_difference_grey: a.corrected_radiometric_difference,
                     intensity_term: a.intensity_term,
                     census_residual_bits: a.census_residual,
                     blockiness: a.blockiness,
@@ -458,6 +463,9 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
     if let MatcherReport::Sgm { adaptation: Some(a), p1, p2, .. } = &stats.matcher {
         // The CLI always asks for AD-census: without its intensity term, the pair made it drop.
         let cost = match (a.intensity_term, a.radiometric_difference_grey) {
+            (true, Some(d)) if a.tone_corrected_difference_grey.is_some() => {
+                format!("AD-census on the right view's tones mapped to the left's (they differed by {d:.0})")
+            }
             (true, _) => "AD-census".to_string(),
             (false, Some(d)) => format!("census alone (the views' grey levels differ by {d:.0})"),
             (false, None) => "census".to_string(),

@@ -43,6 +43,7 @@ mod speckle;
 #[doc(hidden)]
 pub mod stages;
 mod status;
+mod tone;
 mod winner;
 mod wta;
 

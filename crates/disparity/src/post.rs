@@ -47,8 +47,15 @@ pub struct Adaptation {
     /// median grey-level difference between matched pixels over a 3×3 grid of tiles); `None` when
     /// not measured (adaptation off, or a pair too small or too poorly matched to tell).
     pub radiometric_difference: Option<f32>,
+    /// What remains of [`Adaptation::radiometric_difference`] after mapping the right view's
+    /// tones onto the left's (a tone curve and a smooth gain field fitted to the matched pixels);
+    /// measured only where the views differ (above 9 grey levels), the cost is AD-census and the
+    /// correction is plausible (no strong gamma, no view clipped much more than the other). At 3
+    /// or less the intensity term compares the left view with the corrected right view.
+    pub corrected_radiometric_difference: Option<f32>,
     /// Whether the AD-census intensity term was used: it is dropped (census alone) when the
-    /// views differ, e.g. in exposure, gamma or vignetting.
+    /// views differ, e.g. in exposure, gamma or vignetting, and the tone correction does not
+    /// make them agree.
     pub intensity_term: bool,
     /// The median census Hamming distance at the coarse matches (full resolution): how noisy the
     /// cost is at the true match (noise, JPEG, a blurred view raise it); `None` when not measured.

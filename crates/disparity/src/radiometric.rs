@@ -3,6 +3,7 @@
 
 use rayon::prelude::*;
 
+use crate::tone::{ToneCorrection, ToneSample};
 use crate::{DisparityMap, GrayImage, Image};
 
 /// The `factor × factor` box average of `image` (partial blocks at the right and bottom are
@@ -104,13 +105,14 @@ impl CoarseMatch {
     /// level differences of the matched pixels (the box average quiets the noise) per tile of a
     /// 3×3 grid; the largest tile median. A change of exposure, gamma or a vignetting shifts the
     /// medians; a misregistration only widens their spread. `None` when too little matched.
-    pub(crate) fn radiometric_difference(&self) -> Option<f32> {
+    /// With `correction`, the right view's levels are mapped onto the left's first: what is left
+    /// of the difference after [`ToneCorrection::apply`].
+    pub(crate) fn radiometric_difference(&self, correction: Option<&ToneCorrection>) -> Option<f32> {
         let (cw, ch) = self.left.size();
         let mut tiles: Vec<Vec<f32>> = vec![Vec::new(); 9];
-        for (x, y, xr) in self.matches() {
-            let a = f32::from(self.left.get(x, y)) / 257.0;
-            let b = f32::from(self.right.get(xr, y)) / 257.0;
-            tiles[(y * 3 / ch) * 3 + x * 3 / cw].push(a - b);
+        for ((x, y, _), s) in self.matches().zip(self.tone_samples()) {
+            let b = correction.map_or(s.right, |c| c.level(s.right, s.u, s.v));
+            tiles[(y * 3 / ch) * 3 + x * 3 / cw].push(s.left - b);
         }
         let mut medians = Vec::new();
         for t in tiles.iter_mut().filter(|t| t.len() >= 20) {
@@ -121,6 +123,18 @@ impl CoarseMatch {
             return None;
         }
         medians.into_iter().max_by(f32::total_cmp)
+    }
+
+    /// The matched pixels' grey levels (8-bit units), at their position in the right view
+    /// (normalised: the coarse match stands for the full-resolution views).
+    pub(crate) fn tone_samples(&self) -> impl Iterator<Item = ToneSample> + '_ {
+        let (cw, ch) = self.left.size();
+        self.matches().map(move |(x, y, xr)| ToneSample {
+            u: (xr as f32 + 0.5) / cw as f32,
+            v: (y as f32 + 0.5) / ch as f32,
+            right: f32::from(self.right.get(xr, y)) / 257.0,
+            left: f32::from(self.left.get(x, y)) / 257.0,
+        })
     }
 
     /// How noisy the full-resolution census cost is at the true match: the median over the

@@ -357,9 +357,10 @@ pub(crate) fn sgm_reference_ad(
     let (width, height) = left.size();
     let nd = params.range.count();
     let census_bits = (params.census.width * params.census.height - 1) as u32;
-    let (adapted, census_left, census_right, _) =
+    let crate::sgm::Adapted { params: adapted, census_left, census_right, intensity_right, .. } =
         crate::sgm::adapt_to_pair(left, right, params, census_transform);
     let params = &adapted;
+    let right = intensity_right.as_ref().unwrap_or(right);
     let mut cost = vec![0u8; width * height * nd];
     hamming_cost_volume(&census_left, &census_right, params.range, census_bits, &mut cost);
     if let crate::MatchingCost::AdCensus { weight, cap } = params.matching_cost {

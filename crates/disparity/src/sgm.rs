@@ -9,6 +9,7 @@ use crate::hierarchical::{aggregate_bands, stream_bands, Bands};
 use crate::memory;
 use crate::post::{Adaptation, SearchReport, SgmOutput};
 use crate::radiometric::{blockiness, CoarseMatch};
+use crate::tone::ToneCorrection;
 use crate::wta::Selection;
 use crate::{
     check_pair, DisparityMap, DisparityRange, Error, GrayImage, Image, MatchingCost, Search, SgmParams,
@@ -38,11 +39,12 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         });
     }
     crate::check_range(&params.range, width)?;
-    let (adapted, census_left, census_right, adaptation) =
+    let Adapted { params: adapted, census_left, census_right, intensity_right, adaptation } =
         adapt_to_pair(left, right, params, census_transform);
     let params = &adapted;
 
     memory::plan(width, height, params).check(width, height, params)?;
+    let right = intensity_right.as_ref().unwrap_or(right);
     let (disparity, search) = match_census(left, right, &census_left, &census_right, params);
     let confidence = params.confidence.then(|| {
         let bits = (params.census.width * params.census.height - 1) as u32;
@@ -73,17 +75,27 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
 /// What [`SgmParams::adapt_to_pair`] does before aggregation, shared by the matcher and its scalar
 /// reference (each with its own census transform): the coarse match, the census images (of
 /// smoothed views where the cost is noisy or blocky), the cost without its intensity term where the
-/// views differ radiometrically, and the penalties scaled for a noisy cost.
+/// views differ radiometrically (unless mapping the right view's tones onto the left's makes them
+/// agree), and the penalties scaled for a noisy cost.
 pub(crate) fn adapt_to_pair(
     left: &GrayImage,
     right: &GrayImage,
     params: &SgmParams,
     census: impl Fn(&GrayImage, crate::CensusWindow, &mut Image<u64>) + Sync,
-) -> (SgmParams, Image<u64>, Image<u64>, Adaptation) {
+) -> Adapted {
     let (width, height) = left.size();
     let coarse = params.adapt_to_pair.then(|| CoarseMatch::new(left, right, params, sgm)).flatten();
-    let radiometric_difference = coarse.as_ref().and_then(CoarseMatch::radiometric_difference);
-    let intensity_term = keeps_intensity_term(params, radiometric_difference);
+    let radiometric_difference = coarse.as_ref().and_then(|c| c.radiometric_difference(None));
+    let wants_intensity_term = matches!(params.matching_cost, MatchingCost::AdCensus { .. });
+    let differs = views_differ(radiometric_difference);
+    // Views that differ in exposure, gamma or vignetting: the right view's tones mapped onto the
+    // left's, and the intensity term kept on that view if the two then agree (docs/robustness.md).
+    let corrected = (wants_intensity_term && differs)
+        .then(|| coarse.as_ref().and_then(|c| correct_tones(c, left, right)))
+        .flatten();
+    let corrected_difference = corrected.as_ref().map(|(_, d)| *d);
+    let intensity_right = corrected.and_then(|(view, d)| (d <= MAX_CORRECTED_DIFFERENCE).then_some(view));
+    let intensity_term = wants_intensity_term && (!differs || intensity_right.is_some());
     let matching_cost = if intensity_term { params.matching_cost } else { MatchingCost::Census };
     let mut census_left = Image::new(width, height, 0u64);
     let mut census_right = Image::new(width, height, 0u64);
@@ -124,6 +136,7 @@ pub(crate) fn adapt_to_pair(
         SgmParams { matching_cost, ..scaled_penalties(params, penalty_scale(residual, blockiness)) };
     let adaptation = Adaptation {
         radiometric_difference,
+        corrected_radiometric_difference: corrected_difference,
         intensity_term,
         census_residual: residual,
         blockiness,
@@ -132,16 +145,77 @@ pub(crate) fn adapt_to_pair(
         p1: adapted.p1,
         p2: adapted.p2,
     };
-    (adapted, census_left, census_right, adaptation)
+    Adapted { params: adapted, census_left, census_right, intensity_right, adaptation }
 }
 
-/// Whether AD-census keeps its intensity term, given the pair's measured
-/// [`SgmOutput::radiometric_difference`]. The term only helps while both views render a surface
-/// alike; when they differ (exposure, gamma, vignetting) it misleads, and the cost falls back to
-/// census alone, which no monotonic change of intensity affects.
-pub(crate) fn keeps_intensity_term(params: &SgmParams, radiometric_difference: Option<f32>) -> bool {
-    matches!(params.matching_cost, MatchingCost::AdCensus { .. })
-        && !matches!(radiometric_difference, Some(d) if d > crate::radiometric::MAX_RADIOMETRIC_DIFFERENCE)
+/// What [`adapt_to_pair`] makes of the pair.
+pub(crate) struct Adapted {
+    pub(crate) params: SgmParams,
+    pub(crate) census_left: Image<u64>,
+    pub(crate) census_right: Image<u64>,
+    /// The right view the intensity term compares with the left, where its tones were corrected
+    /// ([`ToneCorrection`]); `None`: the right view as given.
+    pub(crate) intensity_right: Option<GrayImage>,
+    pub(crate) adaptation: Adaptation,
+}
+
+/// The right view with its tones mapped onto the left's ([`ToneCorrection`], fitted to the coarse
+/// match) and the radiometric difference that remains; `None` where the fit fails or where the
+/// mapped view would mislead the intensity term: levels stretched apart by more than
+/// [`MAX_TONE_EXPANSION`] (its quantisation steps become false texture), or one view clipped to
+/// black or white over [`MAX_EXTRA_CLIPPED`] more of the image than the other (texture there is
+/// lost for good).
+fn correct_tones(coarse: &CoarseMatch, left: &GrayImage, right: &GrayImage) -> Option<(GrayImage, f32)> {
+    if clipped_excess(left, right) > MAX_EXTRA_CLIPPED {
+        return None;
+    }
+    let samples: Vec<_> = coarse.tone_samples().collect();
+    // A tone curve alone, and with a vignetting: the one that leaves the smaller difference.
+    let (correction, difference) = [false, true]
+        .into_iter()
+        .filter_map(|vignetting| {
+            let correction = ToneCorrection::fit(&samples, vignetting)?;
+            let difference = coarse.radiometric_difference(Some(&correction))?;
+            Some((correction, difference))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let plausible = correction.expansion(&samples) <= MAX_TONE_EXPANSION
+        && correction.nonlinearity(&samples) <= MAX_TONE_NONLINEARITY;
+    plausible.then(|| (correction.apply(right), difference))
+}
+
+/// The largest difference between the two views' shares of pixels at the lowest or the highest
+/// level (0 or 65535).
+fn clipped_excess(left: &GrayImage, right: &GrayImage) -> f32 {
+    let shares = |image: &GrayImage| {
+        let n = image.as_slice().len().max(1) as f32;
+        let black = image.as_slice().iter().filter(|&&v| v == 0).count() as f32 / n;
+        let white = image.as_slice().iter().filter(|&&v| v == u16::MAX).count() as f32 / n;
+        (black, white)
+    };
+    let (l, r) = (shares(left), shares(right));
+    (l.0 - r.0).abs().max((l.1 - r.1).abs())
+}
+
+/// The largest [`ToneCorrection::expansion`] accepted (gain 0.6 measures 1.7–1.9) …
+const MAX_TONE_EXPANSION: f32 = 2.5;
+/// … the largest [`ToneCorrection::nonlinearity`] (8-bit levels): gains, biases and vignetting
+/// measure 0.6–9.3 on the seven scenes, gammas 0.5 and 2 6–43. A camera applies its gamma to each
+/// colour channel, so a coloured surface follows another grey-level curve than a grey one: on cones
+/// with gamma 2 (18.6) the corrected intensity term made the red cones worse (bad2 14.64 → 17.17) …
+const MAX_TONE_NONLINEARITY: f32 = 10.0;
+/// … the largest [`clipped_excess`] …
+const MAX_EXTRA_CLIPPED: f32 = 0.025;
+/// … and the largest radiometric difference left after the correction for the intensity term to
+/// compare the corrected view (clean pairs measure 0.2–5.8 uncorrected).
+const MAX_CORRECTED_DIFFERENCE: f32 = 3.0;
+
+/// Whether the two views render surfaces too differently for AD-census' intensity term, given
+/// their measured [`Adaptation::radiometric_difference`]. The term only helps while both views
+/// render a surface alike; when they differ (exposure, gamma, vignetting) it misleads, and the cost
+/// falls back to census alone, which no monotonic change of intensity affects.
+fn views_differ(radiometric_difference: Option<f32>) -> bool {
+    matches!(radiometric_difference, Some(d) if d > crate::radiometric::MAX_RADIOMETRIC_DIFFERENCE)
 }
 
 /// How much to raise P1 and P2 for a pair whose census cost is noisy at the true match
