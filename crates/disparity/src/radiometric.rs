@@ -172,6 +172,104 @@ impl CoarseMatch {
     }
 }
 
+/// The smallest excess share of one view's pixels at the lowest (or highest) level over the
+/// other view's read as clipping in that view only: clean pairs differ by less than 1 %, exposure
+/// changes that clip 1–2 % are better served by the tone correction, from 4.6 % (gain 1.6) to
+/// 35 % (bias −40) clipping the other view alike helped (docs/robustness.md).
+pub(crate) const MIN_EXTRA_CLIPPED: f32 = 0.025;
+
+/// Shadows or highlights one view clipped and the other did not (a bias or gain that pushed them
+/// past black or white): census would read texture in one view against flat grey in the other.
+/// Clipping the other view at the level below (above) which it holds the same share of its pixels
+/// makes both flat there alike. Bounds `(low, high)` per view, 16-bit.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Clipping {
+    left: (u16, u16),
+    right: (u16, u16),
+}
+
+impl Clipping {
+    /// `None` where neither view holds [`MIN_EXTRA_CLIPPED`] more of its pixels at 0 or 65535.
+    pub(crate) fn matching(left: &GrayImage, right: &GrayImage, samples: &[ToneSample]) -> Option<Self> {
+        let (hl, hr) = (histogram(left), histogram(right));
+        let share = |h: &[f32; 256], lo: bool| if lo { h[0] } else { h[255] };
+        let mut c = Clipping { left: (0, u16::MAX), right: (0, u16::MAX) };
+        let mut any = false;
+        for low in [true, false] {
+            let (l, r) = (share(&hl, low), share(&hr, low));
+            // The view with fewer clipped pixels is clipped at its level holding the other's share.
+            let (bounds, h, target, right_clipped) = if r - l > MIN_EXTRA_CLIPPED {
+                (&mut c.left, &hl, r, true)
+            } else if l - r > MIN_EXTRA_CLIPPED {
+                (&mut c.right, &hr, l, false)
+            } else {
+                continue;
+            };
+            any = true;
+            // The other view's median level where the coarse match pairs it with clipped pixels;
+            // the level holding the same share where too few matched.
+            let clipped_at = |v: f32| if low { v < 0.5 } else { v > 254.5 };
+            let mut levels: Vec<f32> = samples
+                .iter()
+                .filter_map(|s| {
+                    let (this, other) = if right_clipped { (s.right, s.left) } else { (s.left, s.right) };
+                    clipped_at(this).then_some(other)
+                })
+                .collect();
+            let level = if levels.len() >= 20 {
+                let mid = levels.len() / 2;
+                (levels.select_nth_unstable_by(mid, f32::total_cmp).1.round() as u16) * 257
+            } else {
+                level_at_share(h, target, low)
+            };
+            if low {
+                bounds.0 = level;
+            } else {
+                bounds.1 = level;
+            }
+        }
+        any.then_some(c)
+    }
+
+    /// Both views clipped to their bounds.
+    pub(crate) fn apply(&self, left: &GrayImage, right: &GrayImage) -> (GrayImage, GrayImage) {
+        let clip = |image: &GrayImage, (lo, hi): (u16, u16)| {
+            let (w, h) = image.size();
+            GrayImage::from_vec(w, h, image.as_slice().iter().map(|&v| v.clamp(lo, hi)).collect())
+                .expect("same size")
+        };
+        rayon::join(|| clip(left, self.left), || clip(right, self.right))
+    }
+}
+
+/// Shares of the pixels per 8-bit level (16-bit samples binned by their high byte).
+fn histogram(image: &GrayImage) -> [f32; 256] {
+    let mut h = [0f32; 256];
+    for &v in image.as_slice() {
+        h[usize::from(v >> 8)] += 1.0;
+    }
+    let n = image.as_slice().len().max(1) as f32;
+    h.map(|c| c / n)
+}
+
+/// The 16-bit level (an 8-bit level ×257) at or below which (`low`), or at or above which, the
+/// histogram `h` holds `share` of the pixels.
+fn level_at_share(h: &[f32; 256], share: f32, low: bool) -> u16 {
+    let mut sum = 0.0;
+    for i in 0..256 {
+        let bin = if low { i } else { 255 - i };
+        sum += h[bin];
+        if sum >= share {
+            return bin as u16 * 257;
+        }
+    }
+    if low {
+        u16::MAX
+    } else {
+        0
+    }
+}
+
 /// JPEG's 8×8 block artefacts: the mean absolute step between neighbours across the block grid's
 /// lines (every 8th column and row from the origin) over the mean step midway between them
 /// (columns and rows 4 mod 8), sampled on every 4th row and column. 0.93–1.02 for the camera

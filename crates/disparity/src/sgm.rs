@@ -39,13 +39,15 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         });
     }
     crate::check_range(&params.range, width)?;
-    let Adapted { params: adapted, census_left, census_right, intensity_right, adaptation } =
+    let Adapted { params: adapted, census_left, census_right, matching_left, matching_right, adaptation } =
         adapt_to_pair(left, right, params, census_transform);
     let params = &adapted;
 
     memory::plan(width, height, params).check(width, height, params)?;
-    let right = intensity_right.as_ref().unwrap_or(right);
-    let (disparity, search) = match_census(left, right, &census_left, &census_right, params);
+    let (matching_left, matching_right) =
+        (matching_left.as_ref().unwrap_or(left), matching_right.as_ref().unwrap_or(right));
+    let (disparity, search) =
+        match_census(matching_left, matching_right, &census_left, &census_right, params);
     let confidence = params.confidence.then(|| {
         let bits = (params.census.width * params.census.height - 1) as u32;
         census_confidence(&disparity, &census_left, &census_right, bits)
@@ -88,24 +90,43 @@ pub(crate) fn adapt_to_pair(
     let radiometric_difference = coarse.as_ref().and_then(|c| c.radiometric_difference(None));
     let wants_intensity_term = matches!(params.matching_cost, MatchingCost::AdCensus { .. });
     let differs = views_differ(radiometric_difference);
-    // Views that differ in exposure, gamma or vignetting: the right view's tones mapped onto the
-    // left's, and the intensity term kept on that view if the two then agree (docs/robustness.md).
-    let corrected = (wants_intensity_term && differs)
-        .then(|| coarse.as_ref().and_then(|c| correct_tones(c, left, right)))
+    // Shadows or highlights clipped in one view only: the other view clipped alike, so that census
+    // sees both flat there, and census alone (docs/robustness.md).
+    let clipped = differs
+        .then(|| {
+            let samples: Vec<_> = coarse.as_ref().map(|c| c.tone_samples().collect()).unwrap_or_default();
+            crate::radiometric::Clipping::matching(left, right, &samples)
+        })
+        .flatten()
+        .map(|c| c.apply(left, right));
+    let (input_left, input_right) = (left, right);
+    let (left, right) = clipped.as_ref().map_or((left, right), |(l, r)| (l, r));
+    // Otherwise views that differ in exposure, gamma or vignetting: the right view's tones mapped
+    // onto the left's, and the intensity term kept on that view if the two then agree
+    // (docs/robustness.md).
+    let corrected = (wants_intensity_term && differs && clipped.is_none())
+        .then(|| coarse.as_ref().and_then(|c| correct_tones(c, right)))
         .flatten();
     let corrected_difference = corrected.as_ref().map(|(_, d)| *d);
-    let intensity_right = corrected.and_then(|(view, d)| (d <= MAX_CORRECTED_DIFFERENCE).then_some(view));
-    let intensity_term = wants_intensity_term && (!differs || intensity_right.is_some());
+    let corrected_right = corrected.and_then(|(view, d)| (d <= MAX_CORRECTED_DIFFERENCE).then_some(view));
+    let intensity_term = wants_intensity_term && (!differs || corrected_right.is_some());
     let matching_cost = if intensity_term { params.matching_cost } else { MatchingCost::Census };
     let mut census_left = Image::new(width, height, 0u64);
     let mut census_right = Image::new(width, height, 0u64);
+    // The pair's noise is measured on the views as given: clipped alike, the flat areas would
+    // match perfectly and hide it.
     rayon::join(
-        || census(left, params.census, &mut census_left),
-        || census(right, params.census, &mut census_right),
+        || census(input_left, params.census, &mut census_left),
+        || census(input_right, params.census, &mut census_right),
     );
-
     let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
-    let blockiness = params.adapt_to_pair.then(|| blockiness(left).min(blockiness(right)));
+    if clipped.is_some() {
+        rayon::join(
+            || census(left, params.census, &mut census_left),
+            || census(right, params.census, &mut census_right),
+        );
+    }
+    let blockiness = params.adapt_to_pair.then(|| blockiness(input_left).min(blockiness(input_right)));
     // A noisy census (sensor noise, a blurred view, JPEG blocks) compares smoothed views instead:
     // single noisy pixels then flip fewer bits, block edges fade, and the two views' sharpness is
     // closer (docs/robustness.md).
@@ -145,7 +166,11 @@ pub(crate) fn adapt_to_pair(
         p1: adapted.p1,
         p2: adapted.p2,
     };
-    Adapted { params: adapted, census_left, census_right, intensity_right, adaptation }
+    let (matching_left, matching_right) = match clipped {
+        Some((l, r)) => (Some(l), Some(corrected_right.unwrap_or(r))),
+        None => (None, corrected_right),
+    };
+    Adapted { params: adapted, census_left, census_right, matching_left, matching_right, adaptation }
 }
 
 /// What [`adapt_to_pair`] makes of the pair.
@@ -153,22 +178,20 @@ pub(crate) struct Adapted {
     pub(crate) params: SgmParams,
     pub(crate) census_left: Image<u64>,
     pub(crate) census_right: Image<u64>,
-    /// The right view the intensity term compares with the left, where its tones were corrected
-    /// ([`ToneCorrection`]); `None`: the right view as given.
-    pub(crate) intensity_right: Option<GrayImage>,
+    /// The views the matcher compares where they are not the input views: clipped alike
+    /// ([`crate::radiometric::Clipping`]), the right one's tones mapped onto the left's
+    /// ([`ToneCorrection`]); `None`: the view as given.
+    pub(crate) matching_left: Option<GrayImage>,
+    pub(crate) matching_right: Option<GrayImage>,
     pub(crate) adaptation: Adaptation,
 }
 
 /// The right view with its tones mapped onto the left's ([`ToneCorrection`], fitted to the coarse
 /// match) and the radiometric difference that remains; `None` where the fit fails or where the
 /// mapped view would mislead the intensity term: levels stretched apart by more than
-/// [`MAX_TONE_EXPANSION`] (its quantisation steps become false texture), or one view clipped to
-/// black or white over [`MAX_EXTRA_CLIPPED`] more of the image than the other (texture there is
-/// lost for good).
-fn correct_tones(coarse: &CoarseMatch, left: &GrayImage, right: &GrayImage) -> Option<(GrayImage, f32)> {
-    if clipped_excess(left, right) > MAX_EXTRA_CLIPPED {
-        return None;
-    }
+/// [`MAX_TONE_EXPANSION`] (its quantisation steps become false texture) or a strong gamma
+/// ([`MAX_TONE_NONLINEARITY`]).
+fn correct_tones(coarse: &CoarseMatch, right: &GrayImage) -> Option<(GrayImage, f32)> {
     let samples: Vec<_> = coarse.tone_samples().collect();
     // A tone curve alone, and with a vignetting: the one that leaves the smaller difference.
     let (correction, difference) = [false, true]
@@ -184,19 +207,6 @@ fn correct_tones(coarse: &CoarseMatch, left: &GrayImage, right: &GrayImage) -> O
     plausible.then(|| (correction.apply(right), difference))
 }
 
-/// The largest difference between the two views' shares of pixels at the lowest or the highest
-/// level (0 or 65535).
-fn clipped_excess(left: &GrayImage, right: &GrayImage) -> f32 {
-    let shares = |image: &GrayImage| {
-        let n = image.as_slice().len().max(1) as f32;
-        let black = image.as_slice().iter().filter(|&&v| v == 0).count() as f32 / n;
-        let white = image.as_slice().iter().filter(|&&v| v == u16::MAX).count() as f32 / n;
-        (black, white)
-    };
-    let (l, r) = (shares(left), shares(right));
-    (l.0 - r.0).abs().max((l.1 - r.1).abs())
-}
-
 /// The largest [`ToneCorrection::expansion`] accepted (gain 0.6 measures 1.7–1.9) …
 const MAX_TONE_EXPANSION: f32 = 2.5;
 /// … the largest [`ToneCorrection::nonlinearity`] (8-bit levels): gains, biases and vignetting
@@ -204,8 +214,6 @@ const MAX_TONE_EXPANSION: f32 = 2.5;
 /// colour channel, so a coloured surface follows another grey-level curve than a grey one: on cones
 /// with gamma 2 (18.6) the corrected intensity term made the red cones worse (bad2 14.64 → 17.17) …
 const MAX_TONE_NONLINEARITY: f32 = 10.0;
-/// … the largest [`clipped_excess`] …
-const MAX_EXTRA_CLIPPED: f32 = 0.025;
 /// … and the largest radiometric difference left after the correction for the intensity term to
 /// compare the corrected view (clean pairs measure 0.2–5.8 uncorrected).
 const MAX_CORRECTED_DIFFERENCE: f32 = 3.0;
