@@ -228,6 +228,8 @@ pub struct AdaptationReport {
     /// above 9); at 3 or less the intensity term compares the left view with the mapped right view.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tone_corrected_difference_grey: Option<f32>,
+    /// Whether one view's shadows or highlights were clipped and the other was clipped alike.
+    pub clipped_alike: bool,
     /// Whether the AD-census intensity term was used (false: census alone).
     pub intensity_term: bool,
     /// Median census Hamming distance at the true match (bits); above 8 P1/P2 are raised.
@@ -335,6 +337,7 @@ impl MatcherReport {
                 adaptation: adaptation.map(|a| AdaptationReport {
                     radiometric_difference_grey: a.radiometric_difference,
                     tone_corrected_difference_grey: a.corrected_radiometric_difference,
+                    clipped_alike: a.clipped_alike,
                     intensity_term: a.intensity_term,
                     census_residual_bits: a.census_residual,
                     blockiness: a.blockiness,
@@ -467,6 +470,11 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
                 format!("AD-census on the right view's tones mapped to the left's (they differed by {d:.0})")
             }
             (true, _) => "AD-census".to_string(),
+            (false, Some(d)) if a.clipped_alike => {
+                format!(
+                    "census alone (the views' grey levels differ by {d:.0}; clipping matched in both views)"
+                )
+            }
             (false, Some(d)) => format!("census alone (the views' grey levels differ by {d:.0})"),
             (false, None) => "census".to_string(),
         };

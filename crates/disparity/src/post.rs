@@ -53,6 +53,9 @@ pub struct Adaptation {
     /// correction is plausible (no strong gamma, no view clipped much more than the other). At 3
     /// or less the intensity term compares the left view with the corrected right view.
     pub corrected_radiometric_difference: Option<f32>,
+    /// Whether one view's shadows or highlights were clipped (black or white over 2.5 % more of
+    /// the image than in the other view) and the other view was clipped alike before census.
+    pub clipped_alike: bool,
     /// Whether the AD-census intensity term was used: it is dropped (census alone) when the
     /// views differ, e.g. in exposure, gamma or vignetting, and the tone correction does not
     /// make them agree.

@@ -438,6 +438,29 @@ mod tests {
     }
 
     #[test]
+    fn the_view_clipped_less_is_clipped_alike() {
+        let left = texture(200, 100);
+        // Shadows below 40 and highlights above 235 clipped in the right view.
+        let right = GrayImage::from_fn(200, 100, |x, y| {
+            let v = u32::from((left.get(x, y) / 257).clamp(40, 235) - 40);
+            ((v * 255 / 195) * 257) as u16
+        });
+        let c = Clipping::matching(&left, &right, &[]).expect("the right view is clipped");
+        // The left view's levels holding the right's clipped shares: 40 and 235, up to the texture's
+        // histogram steps.
+        assert!((i32::from(c.left.0 / 257) - 40).abs() <= 2, "{c:?}");
+        assert!((i32::from(c.left.1 / 257) - 235).abs() <= 2, "{c:?}");
+        assert_eq!(c.right, (0, u16::MAX));
+        // Matched pixels decide the level where there are enough.
+        let samples: Vec<ToneSample> =
+            (0..40).map(|i| ToneSample { u: 0.5, v: 0.5, left: 30.0 + (i % 3) as f32, right: 0.0 }).collect();
+        let c = Clipping::matching(&left, &right, &samples).expect("the right view is clipped");
+        assert_eq!(c.left.0, 31 * 257);
+        // Views clipped alike (or not at all) are left alone.
+        assert_eq!(Clipping::matching(&left, &left, &[]), None);
+    }
+
+    #[test]
     fn relative_blur_finds_the_defocused_view_and_its_sigma() {
         let sharp = texture(300, 240);
         let soft = gaussian_blur(&sharp, 1.5);

@@ -158,6 +158,7 @@ pub(crate) fn adapt_to_pair(
     let adaptation = Adaptation {
         radiometric_difference,
         corrected_radiometric_difference: corrected_difference,
+        clipped_alike: clipped.is_some(),
         intensity_term,
         census_residual: residual,
         blockiness,

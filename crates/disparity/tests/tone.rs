@@ -97,3 +97,17 @@ fn a_gamma_or_clipping_leaves_census_alone() {
         assert!(!a.intensity_term, "{name}: {a:?}");
     }
 }
+
+#[test]
+fn shadows_clipped_in_one_view_are_clipped_alike_in_the_other() {
+    let scene = scene();
+    let params = SgmParams { range: DisparityRange::new(0, 48).unwrap(), ..SgmParams::default() };
+    let clean = scores(&scene, &sgm_detailed(&scene.left, &scene.right, &params).unwrap());
+    // A bias that clips the right view's darkest tenth or more to black.
+    let right = degrade(&scene.right, |v, _, _| v - 60.0);
+    let out = sgm_detailed(&scene.left, &right, &params).unwrap();
+    let a = &out.adaptation;
+    assert!(a.clipped_alike && !a.intensity_term, "{a:?}");
+    let (good, _) = scores(&scene, &out);
+    assert!(good >= clean.0 - 1.0, "{good:.2} % good, clean {:.2} %", clean.0);
+}

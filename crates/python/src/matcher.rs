@@ -291,6 +291,7 @@ impl Matcher {
                 let d = PyDict::new(py);
                 d.set_item("radiometric_difference", a.radiometric_difference)?;
                 d.set_item("tone_corrected_difference", a.corrected_radiometric_difference)?;
+                d.set_item("clipped_alike", a.clipped_alike)?;
                 d.set_item("intensity_term", a.intensity_term)?;
                 d.set_item("census_residual", a.census_residual)?;
                 d.set_item("blockiness", a.blockiness)?;
