@@ -22,6 +22,9 @@ fn scene() -> Scene {
     scene
 }
 
+/// A right view's 8-bit level from the true level and the centred position `(u, v)`.
+type Render = dyn Fn(f32, f32, f32) -> f32;
+
 /// `image` with every 8-bit level `v` at `(x, y)` replaced by `render(v, x, y)`, rounded and clipped.
 fn degrade(image: &GrayImage, render: impl Fn(f32, f32, f32) -> f32) -> GrayImage {
     let (w, h) = image.size();
@@ -62,7 +65,7 @@ fn exposure_and_vignetting_are_corrected_and_the_intensity_term_kept() {
     assert!(a.intensity_term && a.corrected_radiometric_difference.is_none(), "{a:?}");
     let clean_scores = scores(&scene, &clean);
 
-    let degradations: [(&str, &dyn Fn(f32, f32, f32) -> f32); 3] = [
+    let degradations: [(&str, &Render); 3] = [
         ("gain 0.6", &|v, _, _| 0.6 * v),
         ("bias +30", &|v, _, _| v + 30.0),
         // 40 % fall-off at the corners.
