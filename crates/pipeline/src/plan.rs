@@ -11,7 +11,7 @@ use crate::{DepthLimits, Error, Matcher};
 pub struct PipelineParams {
     /// The matcher and its parameters, including the disparities searched.
     pub matcher: Matcher,
-    /// Measure the pair's vertical alignment and resample the right view when it is off by 0.25 px
+    /// Measure the pair's vertical alignment and resample the right view when it is off by 0.3 px
     /// or more (the measurement is reported either way).
     pub align: bool,
     /// SGM: invalidate pixels whose confidence is below this (0–1). Needs
