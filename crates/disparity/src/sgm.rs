@@ -153,8 +153,16 @@ pub(crate) fn adapt_to_pair(
             || census(&r, params.census, &mut census_right),
         );
     }
+    // The dense output's stricter left-right check and fill do better with the penalties of the
+    // views census now compares, where one view was blurred to match the other
+    // (docs/robustness.md).
+    let penalty_residual = if params.fill && sharper_view_blur.is_some() {
+        coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right))
+    } else {
+        residual
+    };
     let adapted =
-        SgmParams { matching_cost, ..scaled_penalties(params, penalty_scale(residual, blockiness)) };
+        SgmParams { matching_cost, ..scaled_penalties(params, penalty_scale(penalty_residual, blockiness)) };
     let adaptation = Adaptation {
         radiometric_difference,
         corrected_radiometric_difference: corrected_difference,
