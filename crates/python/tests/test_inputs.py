@@ -150,3 +150,20 @@ def test_help_lists_every_option_with_its_default():
     assert sd.Matcher(preset="fast").params["paths"] == 4
     assert sd.Matcher().params["search"] == "auto"
     assert sd.Matcher(search="hierarchical").params["search"] == "hierarchical"
+
+
+def test_adaptation_reports_the_tone_correction_and_the_clipping(pair):
+    left, right = pair
+    m = sd.Matcher(max_disparity=32)
+    clean = m.compute_detailed(left, right).adaptation
+    assert clean["intensity_term"] and clean["tone_corrected_difference"] is None
+    assert not clean["clipped_alike"]
+    # A darker right view: its tones are mapped onto the left's and the intensity term is kept.
+    darker = np.round(right.astype(np.float32) * 0.6).astype(np.uint8)
+    a = m.compute_detailed(left, darker).adaptation
+    assert a["radiometric_difference"] > 9 and a["tone_corrected_difference"] <= 3
+    assert a["intensity_term"] and not a["clipped_alike"]
+    # Shadows clipped to black in the right view only: the left view is clipped alike.
+    clipped = np.clip(right.astype(np.int16) - 80, 0, 255).astype(np.uint8)
+    a = m.compute_detailed(left, clipped).adaptation
+    assert a["clipped_alike"] and not a["intensity_term"]
