@@ -9,7 +9,7 @@ use crate::hierarchical::{aggregate_bands, stream_bands, Bands};
 use crate::memory;
 use crate::post::{Adaptation, SearchReport, SgmOutput};
 use crate::radiometric::{blockiness, CoarseMatch};
-use crate::tone::ToneCorrection;
+use crate::tone::{ToneCorrection, Vignetting};
 use crate::wta::Selection;
 use crate::{
     check_pair, DisparityMap, DisparityRange, Error, GrayImage, Image, MatchingCost, Search, SgmParams,
@@ -202,8 +202,11 @@ pub(crate) struct Adapted {
 /// ([`MAX_TONE_NONLINEARITY`]).
 fn correct_tones(coarse: &CoarseMatch, right: &GrayImage) -> Option<(GrayImage, f32)> {
     let samples: Vec<_> = coarse.tone_samples().collect();
-    // A tone curve alone, and with a vignetting: the one that leaves the smaller difference.
-    let (correction, difference) = [false, true]
+    // A tone curve alone, with a quadratic vignetting, and with a radial one (fewer unknowns: on
+    // teddy it fits where the quadratic one trades against the curve): the one that leaves the
+    // smaller difference.
+    let aspect = right.width() as f32 / right.height() as f32;
+    let (correction, difference) = [None, Some(Vignetting::Quadratic), Some(Vignetting::Radial { aspect })]
         .into_iter()
         .filter_map(|vignetting| {
             let correction = ToneCorrection::fit(&samples, vignetting)?;

@@ -30,6 +30,14 @@ const MIN_TILE_SAMPLES: usize = 12;
 /// Rounds of fitting the curve with the attenuation fixed, then the attenuation with the curve fixed.
 const ROUNDS: usize = 3;
 
+/// The shape of a vignetting: any quadratic surface, or radial about the centre of a `W×H`
+/// image (`aspect` W/H).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Vignetting {
+    Quadratic,
+    Radial { aspect: f32 },
+}
+
 /// `left ≈ curve(right) / attenuation(u, v)`: the right view's tones mapped onto the left's. A
 /// vignetting attenuates the light towards the corners about quadratically in the distance from
 /// the centre, so the attenuation (not its inverse) is the quadratic surface.
@@ -44,15 +52,15 @@ pub(crate) struct ToneCorrection {
 
 impl ToneCorrection {
     /// The correction fitted to `samples`; `None` when too few bins or tiles hold samples to fit.
-    pub(crate) fn fit(samples: &[ToneSample], vignetting: bool) -> Option<Self> {
+    pub(crate) fn fit(samples: &[ToneSample], vignetting: Option<Vignetting>) -> Option<Self> {
         let mut correction = ToneCorrection {
             curve: std::array::from_fn(|i| i as f32),
             attenuation: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         };
-        for _ in 0..if vignetting { ROUNDS } else { 0 } {
+        for _ in 0..if vignetting.is_some() { ROUNDS } else { 0 } {
             correction.curve =
                 fit_curve(samples.iter().map(|s| (s.right, s.left * correction.attenuation(s.u, s.v))))?;
-            correction.attenuation = fit_attenuation(samples, &correction.curve)?;
+            correction.attenuation = fit_attenuation(samples, &correction.curve, vignetting?)?;
         }
         correction.curve =
             fit_curve(samples.iter().map(|s| (s.right, s.left * correction.attenuation(s.u, s.v))))?;
@@ -202,7 +210,7 @@ fn fit_curve(pairs: impl Iterator<Item = (f32, f32)>) -> Option<[f32; 256]> {
 /// The attenuation: the median of `curve(right) / left` per tile of a [`GAIN_TILES`]² grid, then
 /// the quadratic surface through the tiles' medians (least squares weighted by their samples),
 /// scaled to 1 at the median tile. `None` when fewer than 6 tiles have samples.
-fn fit_attenuation(samples: &[ToneSample], curve: &[f32; 256]) -> Option<[f32; 6]> {
+fn fit_attenuation(samples: &[ToneSample], curve: &[f32; 256], model: Vignetting) -> Option<[f32; 6]> {
     let n = GAIN_TILES;
     let mut tiles: Vec<Vec<f32>> = vec![Vec::new(); n * n];
     for s in samples {
@@ -227,17 +235,41 @@ fn fit_attenuation(samples: &[ToneSample], curve: &[f32; 256]) -> Option<[f32; 6
         return None;
     }
     let basis = |x: f32, y: f32| [1.0, x, y, x * x, y * y, x * y];
-    let mut a = [[0f64; 7]; 6];
-    for &(x, y, g, w) in &points {
-        let b = basis(x, y);
-        for r in 0..6 {
-            for c in 0..6 {
-                a[r][c] += f64::from(w * b[r] * b[c]);
+    let mut coefficients = match model {
+        Vignetting::Quadratic => {
+            let mut a = [[0f64; 7]; 6];
+            for &(x, y, g, w) in &points {
+                let b = basis(x, y);
+                for r in 0..6 {
+                    for c in 0..6 {
+                        a[r][c] += f64::from(w * b[r] * b[c]);
+                    }
+                    a[r][6] += f64::from(w * b[r] * g);
+                }
             }
-            a[r][6] += f64::from(w * b[r] * g);
+            solve(a)?
         }
-    }
-    let mut coefficients = solve(a)?;
+        Vignetting::Radial { aspect } => {
+            // `c0 + k·ρ²`, ρ² = 4(x²·A² + y²)/(A² + 1): 1 at the corners of a W×H image, A = W/H.
+            let a2 = aspect * aspect;
+            let (sx, sy) = (4.0 * a2 / (a2 + 1.0), 4.0 / (a2 + 1.0));
+            let (mut s00, mut s01, mut s11, mut t0, mut t1) = (0f64, 0f64, 0f64, 0f64, 0f64);
+            for &(x, y, g, w) in &points {
+                let (r, w, g) = (f64::from(sx * x * x + sy * y * y), f64::from(w), f64::from(g));
+                s00 += w;
+                s01 += w * r;
+                s11 += w * r * r;
+                t0 += w * g;
+                t1 += w * g * r;
+            }
+            let det = s00 * s11 - s01 * s01;
+            if det.abs() < 1e-12 {
+                return None;
+            }
+            let (c0, k) = (((t0 * s11 - t1 * s01) / det) as f32, ((s00 * t1 - s01 * t0) / det) as f32);
+            [c0, 0.0, 0.0, k * sx, k * sy, 0.0]
+        }
+    };
     let mut fitted: Vec<f32> = points
         .iter()
         .map(|&(x, y, _, _)| basis(x, y).iter().zip(&coefficients).map(|(b, c)| b * c).sum())
@@ -307,12 +339,12 @@ mod tests {
         for render in [&(|l: f32, _, _| l * 0.6) as &dyn Fn(f32, f32, f32) -> f32, &|l, _, _| 0.8 * l + 40.0]
         {
             let s = samples(render);
-            let c = ToneCorrection::fit(&s, false).expect("enough samples");
+            let c = ToneCorrection::fit(&s, None).expect("enough samples");
             // A right level stands for up to 1.7 left levels at gain 0.6.
             assert!(worst_error(&s, &c) < 2.0, "{}", worst_error(&s, &c));
             assert!(c.nonlinearity(&s) < 2.0, "{}", c.nonlinearity(&s));
         }
-        let c = ToneCorrection::fit(&samples(|l, _, _| l * 0.6), false).expect("enough samples");
+        let c = ToneCorrection::fit(&samples(|l, _, _| l * 0.6), None).expect("enough samples");
         let expansion = c.expansion(&samples(|l, _, _| l * 0.6));
         assert!((expansion - 1.0 / 0.6).abs() < 0.2, "{expansion}");
     }
@@ -321,7 +353,7 @@ mod tests {
     fn a_gamma_is_undone_where_the_levels_allow_and_reads_as_curved() {
         for (gamma, curved) in [(2.0f32, 35.0), (0.5, 25.0)] {
             let s = samples(|l, _, _| 255.0 * (l / 255.0).powf(gamma));
-            let c = ToneCorrection::fit(&s, false).expect("enough samples");
+            let c = ToneCorrection::fit(&s, None).expect("enough samples");
             // Above left level 60 a right level stands for at most 2 left levels.
             let worst = s
                 .iter()
@@ -337,20 +369,24 @@ mod tests {
     fn vignetting_is_undone() {
         // 40 % fall-off at the corners, as `stereo-degrade` makes it.
         let s = samples(|l, u, v| l * (1.0 - 0.4 * ((u - 0.5).powi(2) + (v - 0.5).powi(2)) / 0.5));
-        let c = ToneCorrection::fit(&s, true).expect("enough samples");
+        let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic)).expect("enough samples");
         assert!(worst_error(&s, &c) < 3.0, "{}", worst_error(&s, &c));
+        // A radial fall-off about the centre (the samples' grid is square in u, v).
+        let radial =
+            ToneCorrection::fit(&s, Some(Vignetting::Radial { aspect: 1.0 })).expect("enough samples");
+        assert!(worst_error(&s, &radial) < 3.0, "{}", worst_error(&s, &radial));
         // The curve alone cannot follow it.
-        let curve_only = ToneCorrection::fit(&s, false).expect("enough samples");
+        let curve_only = ToneCorrection::fit(&s, None).expect("enough samples");
         assert!(worst_error(&s, &curve_only) > 20.0, "{}", worst_error(&s, &curve_only));
         // The views alike: the identity, up to the fit.
         let s = samples(|l, _, _| l);
-        let c = ToneCorrection::fit(&s, true).expect("enough samples");
+        let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic)).expect("enough samples");
         assert!(worst_error(&s, &c) < 1.5, "{}", worst_error(&s, &c));
     }
 
     #[test]
     fn the_applied_correction_keeps_the_scale() {
-        let c = ToneCorrection::fit(&samples(|l, _, _| l * 0.5), false).expect("enough samples");
+        let c = ToneCorrection::fit(&samples(|l, _, _| l * 0.5), None).expect("enough samples");
         let right = GrayImage::from_fn(16, 8, |x, _| (x as u16 * 8) * 257);
         let out = c.apply(&right);
         assert!(out.as_slice().iter().all(|&v| v % 257 == 0));
@@ -364,6 +400,6 @@ mod tests {
     #[test]
     fn too_few_samples_fit_nothing() {
         let s = samples(|l, _, _| l);
-        assert!(ToneCorrection::fit(&s[..MIN_SAMPLES - 1], false).is_none());
+        assert!(ToneCorrection::fit(&s[..MIN_SAMPLES - 1], None).is_none());
     }
 }
