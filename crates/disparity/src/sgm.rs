@@ -9,7 +9,7 @@ use crate::hierarchical::{aggregate_bands, stream_bands, Bands};
 use crate::memory;
 use crate::post::{Adaptation, SearchReport, SgmOutput};
 use crate::radiometric::{blockiness, CoarseMatch};
-use crate::tone::{ToneCorrection, Vignetting};
+use crate::tone::{ToneCorrection, ToneSample, Vignetting};
 use crate::wta::Selection;
 use crate::{
     check_pair, DisparityMap, DisparityRange, Error, GrayImage, Image, MatchingCost, Search, SgmParams,
@@ -92,11 +92,13 @@ pub(crate) fn adapt_to_pair(
     let differs = views_differ(radiometric_difference);
     // Shadows or highlights clipped in one view only: the other view clipped alike, so that census
     // sees both flat there, and census alone (docs/robustness.md).
+    // The coarse match's pixel pairs, which both the clipping and the tone correction read.
+    let samples: Vec<_> = match (&coarse, differs) {
+        (Some(c), true) => c.tone_samples().collect(),
+        _ => Vec::new(),
+    };
     let clipped = differs
-        .then(|| {
-            let samples: Vec<_> = coarse.as_ref().map(|c| c.tone_samples().collect()).unwrap_or_default();
-            crate::radiometric::Clipping::matching(left, right, &samples)
-        })
+        .then(|| crate::radiometric::Clipping::matching(left, right, &samples))
         .flatten()
         .map(|c| c.apply(left, right));
     let (input_left, input_right) = (left, right);
@@ -105,7 +107,7 @@ pub(crate) fn adapt_to_pair(
     // onto the left's, and the intensity term kept on that view if the two then agree
     // (docs/robustness.md).
     let corrected = (wants_intensity_term && differs && clipped.is_none())
-        .then(|| coarse.as_ref().and_then(|c| correct_tones(c, right)))
+        .then(|| coarse.as_ref().and_then(|c| correct_tones(c, &samples, right)))
         .flatten();
     let corrected_difference = corrected.as_ref().map(|(_, d)| *d);
     let corrected_right = corrected.and_then(|(view, d)| (d <= MAX_CORRECTED_DIFFERENCE).then_some(view));
@@ -200,8 +202,11 @@ pub(crate) struct Adapted {
 /// mapped view would mislead the intensity term: levels stretched apart by more than
 /// [`MAX_TONE_EXPANSION`] (its quantisation steps become false texture) or a strong gamma
 /// ([`MAX_TONE_NONLINEARITY`]).
-fn correct_tones(coarse: &CoarseMatch, right: &GrayImage) -> Option<(GrayImage, f32)> {
-    let samples: Vec<_> = coarse.tone_samples().collect();
+fn correct_tones(
+    coarse: &CoarseMatch,
+    samples: &[ToneSample],
+    right: &GrayImage,
+) -> Option<(GrayImage, f32)> {
     // A tone curve alone, with a quadratic vignetting, and with a radial one (fewer unknowns: on
     // teddy it fits where the quadratic one trades against the curve): the one that leaves the
     // smaller difference.
@@ -209,13 +214,13 @@ fn correct_tones(coarse: &CoarseMatch, right: &GrayImage) -> Option<(GrayImage, 
     let (correction, difference) = [None, Some(Vignetting::Quadratic), Some(Vignetting::Radial { aspect })]
         .into_iter()
         .filter_map(|vignetting| {
-            let correction = ToneCorrection::fit(&samples, vignetting)?;
+            let correction = ToneCorrection::fit(samples, vignetting)?;
             let difference = coarse.radiometric_difference(Some(&correction))?;
             Some((correction, difference))
         })
         .min_by(|a, b| a.1.total_cmp(&b.1))?;
-    let plausible = correction.expansion(&samples) <= MAX_TONE_EXPANSION
-        && correction.nonlinearity(&samples) <= MAX_TONE_NONLINEARITY;
+    let plausible = correction.expansion(samples) <= MAX_TONE_EXPANSION
+        && correction.nonlinearity(samples) <= MAX_TONE_NONLINEARITY;
     plausible.then(|| (correction.apply(right), difference))
 }
 

@@ -53,17 +53,24 @@ pub(crate) struct ToneCorrection {
 impl ToneCorrection {
     /// The correction fitted to `samples`; `None` when too few bins or tiles hold samples to fit.
     pub(crate) fn fit(samples: &[ToneSample], vignetting: Option<Vignetting>) -> Option<Self> {
+        let samples: Vec<&ToneSample> =
+            samples.iter().filter(|s| s.right.is_finite() && s.left.is_finite()).collect();
+        if samples.len() < MIN_SAMPLES {
+            return None;
+        }
+        // The right levels do not change between rounds: sorted once.
+        let mut right: Vec<f32> = samples.iter().map(|s| s.right).collect();
+        right.sort_unstable_by(f32::total_cmp);
         let mut correction = ToneCorrection {
             curve: std::array::from_fn(|i| i as f32),
             attenuation: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         };
+        let left = |c: &ToneCorrection| samples.iter().map(|s| s.left * c.attenuation(s.u, s.v)).collect();
         for _ in 0..if vignetting.is_some() { ROUNDS } else { 0 } {
-            correction.curve =
-                fit_curve(samples.iter().map(|s| (s.right, s.left * correction.attenuation(s.u, s.v))))?;
-            correction.attenuation = fit_attenuation(samples, &correction.curve, vignetting?)?;
+            correction.curve = fit_curve(&right, left(&correction))?;
+            correction.attenuation = fit_attenuation(&samples, &correction.curve, vignetting?)?;
         }
-        correction.curve =
-            fit_curve(samples.iter().map(|s| (s.right, s.left * correction.attenuation(s.u, s.v))))?;
+        correction.curve = fit_curve(&right, left(&correction))?;
         Some(correction)
     }
 
@@ -143,19 +150,13 @@ fn level_span(samples: &[ToneSample]) -> (usize, usize) {
     (lo, (hi.round() as usize).clamp(lo + 1, 255))
 }
 
-/// The monotone curve that maps the right levels of `(right, left)` pairs onto the left levels of
-/// the same rank (quantile matching: the matched pixels show both views the same surfaces, so
+/// The monotone curve that maps the right levels of matched pairs (`right`, sorted) onto their
+/// left levels (`left`, in any order) of the same rank (quantile matching: the matched pixels show both views the same surfaces, so
 /// their two level distributions differ only by the curve, and mismatched pairs, which blur a
 /// per-level median towards the mean, barely move the quantiles); linear between [`KNOTS`]
-/// quantiles and beyond them with the mean slope of the outermost few. `None` with fewer than
-/// [`MIN_SAMPLES`] pairs.
-fn fit_curve(pairs: impl Iterator<Item = (f32, f32)>) -> Option<[f32; 256]> {
-    let (mut right, mut left): (Vec<f32>, Vec<f32>) =
-        pairs.filter(|(r, l)| r.is_finite() && l.is_finite()).unzip();
-    if right.len() < MIN_SAMPLES {
-        return None;
-    }
-    right.sort_unstable_by(f32::total_cmp);
+/// quantiles and beyond them with the mean slope of the outermost few. `None` where the quantiles
+/// hold fewer than two right levels.
+fn fit_curve(right: &[f32], mut left: Vec<f32>) -> Option<[f32; 256]> {
     left.sort_unstable_by(f32::total_cmp);
     let n = right.len();
     // Knots: (right level, left level), one per quantile; equal right levels merged.
@@ -210,7 +211,7 @@ fn fit_curve(pairs: impl Iterator<Item = (f32, f32)>) -> Option<[f32; 256]> {
 /// The attenuation: the median of `curve(right) / left` per tile of a [`GAIN_TILES`]² grid, then
 /// the quadratic surface through the tiles' medians (least squares weighted by their samples),
 /// scaled to 1 at the median tile. `None` when fewer than 6 tiles have samples.
-fn fit_attenuation(samples: &[ToneSample], curve: &[f32; 256], model: Vignetting) -> Option<[f32; 6]> {
+fn fit_attenuation(samples: &[&ToneSample], curve: &[f32; 256], model: Vignetting) -> Option<[f32; 6]> {
     let n = GAIN_TILES;
     let mut tiles: Vec<Vec<f32>> = vec![Vec::new(); n * n];
     for s in samples {
