@@ -242,6 +242,9 @@ pub struct AdaptationReport {
     /// The penalties used, after raising them for a noisy cost.
     pub p1_used: u16,
     pub p2_used: u16,
+    /// P2 lowered across image edges as `P2 · s / (s + ΔI)` with this `s` (0: constant P2); set
+    /// on noisy and JPEG pairs.
+    pub p2_edge_scale_used: u16,
 }
 
 #[derive(Debug, Serialize)]
@@ -344,6 +347,7 @@ impl MatcherReport {
                     census_smoothing: a.census_smoothing,
                     p1_used: a.p1,
                     p2_used: a.p2,
+                    p2_edge_scale_used: a.p2_edge_scale,
                 }),
                 search: if search.is_some_and(|s| s.hierarchical) { "hierarchical" } else { "full" },
                 search_levels: search.map_or(0, |s| s.levels),
@@ -482,6 +486,11 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
             format!("P1 {p1} P2 {p2}")
         } else {
             format!("P1 {} P2 {} (raised for a noisy cost)", a.p1_used, a.p2_used)
+        };
+        let penalties = if a.p2_edge_scale_used > 0 {
+            format!("{penalties}, P2 lowered across image edges")
+        } else {
+            penalties
         };
         let penalties =
             if a.census_smoothing { format!("{penalties}, census on smoothed views") } else { penalties };

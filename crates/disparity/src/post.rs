@@ -75,6 +75,9 @@ pub struct Adaptation {
     /// The penalties used: [`SgmParams::p1`] and [`SgmParams::p2`], raised for a noisy cost.
     pub p1: u16,
     pub p2: u16,
+    /// [`SgmParams::p2_edge_scale`] used: set on noisy and JPEG pairs (P2 strong in flat areas,
+    /// lowered across image edges), else as given.
+    pub p2_edge_scale: u16,
 }
 
 impl SgmOutput {

@@ -163,8 +163,16 @@ pub(crate) fn adapt_to_pair(
     } else {
         residual
     };
-    let adapted =
+    let mut adapted =
         SgmParams { matching_cost, ..scaled_penalties(params, penalty_scale(penalty_residual, blockiness)) };
+    // Noise and JPEG blocks leave weak texture (dark or flat areas) without a reliable cost, where
+    // only a strong smoothness term finds the surface; a P2 that stays strong there but drops
+    // across image edges keeps depth edges free. Measured better for the default output on noisy
+    // and JPEG pairs, worse for the dense one and for a one-sided blur (docs/robustness.md).
+    if census_smoothing && sharper_view_blur.is_none() && !params.fill && params.p2_edge_scale == 0 {
+        adapted.p2 = adapted.p2.saturating_mul(NOISY_P2_FACTOR).min(MAX_P2);
+        adapted.p2_edge_scale = NOISY_P2_EDGE_SCALE;
+    }
     let adaptation = Adaptation {
         radiometric_difference,
         corrected_radiometric_difference: corrected_difference,
@@ -176,6 +184,7 @@ pub(crate) fn adapt_to_pair(
         sharper_view_blur,
         p1: adapted.p1,
         p2: adapted.p2,
+        p2_edge_scale: adapted.p2_edge_scale,
     };
     let (matching_left, matching_right) = match clipped {
         Some((l, r)) => (Some(l), Some(corrected_right.unwrap_or(r))),
@@ -259,6 +268,11 @@ pub(crate) fn smooths_census(residual: Option<f32>, blockiness: Option<f32>) -> 
     residual.is_some_and(|r| r > crate::radiometric::CLEAN_CENSUS_RESIDUAL)
         || blockiness.is_some_and(|b| b > CLEAN_BLOCKINESS)
 }
+
+/// How much more P2 the default output takes on a noisy or JPEG pair ([`adapt_to_pair`]) …
+const NOISY_P2_FACTOR: u16 = 2;
+/// … lowered across image edges as `P2 · s / (s + ΔI)` with this `s` ([`SgmParams::p2_edge_scale`]).
+const NOISY_P2_EDGE_SCALE: u16 = 30;
 
 /// The largest [`blockiness`] of an uncompressed view (1.02 on the Middlebury scenes) …
 const CLEAN_BLOCKINESS: f32 = 1.05;

@@ -298,6 +298,7 @@ impl Matcher {
                 d.set_item("census_smoothing", a.census_smoothing)?;
                 d.set_item("p1", a.p1)?;
                 d.set_item("p2", a.p2)?;
+                d.set_item("p2_edge_scale", a.p2_edge_scale)?;
                 Some(d.into_any().unbind())
             }
             None => None,
