@@ -955,7 +955,7 @@ mod tests {
             hamming_cost_volume(&cl, &cr, range, 24, &mut cost);
             let paths = if four { PathCount::Four } else { PathCount::Eight };
             let p2 = P2Table::new(p1, (p1 + p2_extra).min(MAX_P2), edge);
-            let selection = Selection { range, uniqueness_ratio: 5, lr_max_diff: Some(1.0), subpixel: Subpixel::Equiangular };
+            let selection = Selection { range, uniqueness_ratio: 5, lr_max_diff: Some(1.0), lr_left_neighbour: true, subpixel: Subpixel::Equiangular };
             let sums = stream_sums_reference(&left, &cost, nd, paths, p1, &p2);
             let mut expected = vec![f32::NAN; w * h];
             let mut right_best = vec![0usize; w];

@@ -211,7 +211,7 @@ impl Matcher<'_> {
             let d = (self.min + best as i64) as f32 + refined_offset(c, ks, best, self.params.subpixel);
             if let Some(max_diff) = self.params.lr_max_diff {
                 let xr = x as i64 - d.round() as i64;
-                if left_right_check(&right.index, xr, d, self.min, max_diff).is_err() {
+                if left_right_check(&right.index, xr, d, self.min, max_diff, false).is_err() {
                     continue;
                 }
             }

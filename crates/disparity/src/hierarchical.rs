@@ -646,7 +646,16 @@ fn select_row(
             let xr = x as i64 - i64::from(d_int);
             let kr = scratch.right_index[(width as i64 - 1 - xr) as usize];
             let dr = sel.range.min + i32::from(kr);
-            if kr == NONE || (dr as f32 - d_int as f32).abs() > max_diff {
+            // As `winner::left_right_check`, with its `left_neighbour`.
+            let agrees = |k: u16| {
+                k != NONE && ((sel.range.min + i32::from(k)) as f32 - d_int as f32).abs() <= max_diff
+            };
+            let neighbour = sel.lr_left_neighbour
+                && kr != NONE
+                && dr > d_int
+                && xr >= 1
+                && agrees(scratch.right_index[(width as i64 - xr) as usize]);
+            if !agrees(kr) && !neighbour {
                 let occluded = kr != NONE && dr > d_int;
                 *o = tagged_nan(if occluded { PixelStatus::Occluded } else { PixelStatus::Mismatch });
                 continue;

@@ -379,6 +379,7 @@ pub(crate) fn sgm_reference_ad(
         range: params.range,
         uniqueness_ratio: params.uniqueness_ratio,
         lr_max_diff: params.lr_max_diff,
+        lr_left_neighbour: params.lr_left_neighbour,
         subpixel: params.subpixel,
     };
     let mut right_best = vec![0usize; width];

@@ -416,6 +416,7 @@ pub(crate) fn aggregation_inputs<'a>(
             range: params.range,
             uniqueness_ratio: params.uniqueness_ratio,
             lr_max_diff: params.lr_max_diff,
+            lr_left_neighbour: params.lr_left_neighbour,
             subpixel: params.subpixel,
         },
     }

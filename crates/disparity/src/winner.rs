@@ -200,6 +200,11 @@ pub(crate) fn keep_smaller<C: Cost, I: WinnerIndex>(
 /// winner's index, `origin` 0), BM its refined disparity (`origin` the smallest disparity).
 /// A failure says whether the right view's value is the larger (an occlusion: a nearer surface
 /// hides the pixel there); `false` also where the right pixel is outside or has no winner.
+///
+/// With `left_neighbour`, a would-be occlusion also passes when the right pixel one to the left,
+/// `xr − 1`, agrees: the right view's winners come from the left volume, whose foreground
+/// spreads about a pixel into the background beside a depth edge, so right after such an edge
+/// the check otherwise rejects background pixels that matched correctly (docs/robustness.md).
 #[inline(always)]
 pub(crate) fn left_right_check<I: WinnerIndex>(
     right_index: &[I],
@@ -207,20 +212,26 @@ pub(crate) fn left_right_check<I: WinnerIndex>(
     value: f32,
     origin: i64,
     max_diff: f32,
+    left_neighbour: bool,
 ) -> Result<(), bool> {
     let width = right_index.len();
-    if !(0..width as i64).contains(&xr) {
+    let right_at = |q: i64| {
+        if !(0..width as i64).contains(&q) {
+            return None;
+        }
+        let k = right_index[width - 1 - q as usize];
+        (k != I::NONE).then(|| (origin + k.index() as i64) as f32)
+    };
+    let Some(right) = right_at(xr) else {
         return Err(false);
+    };
+    if (value - right).abs() <= max_diff {
+        return Ok(());
     }
-    let kr = right_index[width - 1 - xr as usize];
-    if kr == I::NONE {
-        return Err(false);
+    if left_neighbour && right > value && right_at(xr - 1).is_some_and(|r| (value - r).abs() <= max_diff) {
+        return Ok(());
     }
-    let right = (origin + kr.index() as i64) as f32;
-    if (value - right).abs() > max_diff {
-        return Err(right > value);
-    }
-    Ok(())
+    Err(right > value)
 }
 
 /// Sub-pixel offset in `[-0.5, 0.5]` of the cost minimum from the three costs around it.

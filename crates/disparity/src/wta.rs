@@ -22,6 +22,8 @@ pub(crate) struct Selection {
     pub range: DisparityRange,
     pub uniqueness_ratio: u32,
     pub lr_max_diff: Option<f32>,
+    /// [`crate::SgmParams::lr_left_neighbour`].
+    pub lr_left_neighbour: bool,
     pub subpixel: Subpixel,
 }
 
@@ -150,7 +152,14 @@ fn select_row_generic(
         let d_int = sel.range.min as i64 + best as i64;
         if let Some(max_diff) = sel.lr_max_diff {
             let right_index = &scratch.right_index[..width];
-            if let Err(occluded) = left_right_check(right_index, x as i64 - d_int, best as f32, 0, max_diff) {
+            if let Err(occluded) = left_right_check(
+                right_index,
+                x as i64 - d_int,
+                best as f32,
+                0,
+                max_diff,
+                sel.lr_left_neighbour,
+            ) {
                 *o = lr_failure(occluded);
                 continue;
             }
@@ -347,7 +356,9 @@ mod fused {
             }
             let best = usize::from(left_best[x]);
             let xr = x as i64 - min - best as i64;
-            if let Err(occluded) = left_right_check(right_index, xr, best as f32, 0, max_diff) {
+            if let Err(occluded) =
+                left_right_check(right_index, xr, best as f32, 0, max_diff, sel.lr_left_neighbour)
+            {
                 *o = super::lr_failure(occluded);
             }
         }
@@ -455,8 +466,12 @@ pub(crate) fn select_row_reference(
         if let Some(max_diff) = sel.lr_max_diff {
             let xr = x as i64 - d_int;
             let kr = right_best[xr as usize];
-            if kr == usize::MAX || (kr as f32 - best as f32).abs() > max_diff {
-                *o = lr_failure(kr != usize::MAX && kr > best);
+            let agrees = |k: usize| k != usize::MAX && (k as f32 - best as f32).abs() <= max_diff;
+            let occluded = kr != usize::MAX && kr > best;
+            let neighbour =
+                sel.lr_left_neighbour && occluded && xr >= 1 && agrees(right_best[xr as usize - 1]);
+            if !agrees(kr) && !neighbour {
+                *o = lr_failure(occluded);
                 continue;
             }
         }
@@ -481,7 +496,7 @@ mod tests {
         fn selection_kernels_match_the_reference(
             width in 1usize..90, nd in 1usize..300, min in -20i32..40, spread in 1u16..40,
             seed in proptest::prelude::any::<u64>(), uniqueness in 0u32..3, lr in proptest::prelude::any::<Option<u8>>(),
-            sub in 0u8..3,
+            sub in 0u8..3, neighbour in proptest::prelude::any::<bool>(),
         ) {
             let mut state = seed | 1;
             let costs: Vec<u16> = (0..width * nd)
@@ -496,6 +511,7 @@ mod tests {
                 range: DisparityRange { min, max: min + nd as i32 },
                 uniqueness_ratio: uniqueness * 7,
                 lr_max_diff: lr.map(|d| f32::from(d % 4)),
+                lr_left_neighbour: neighbour,
                 subpixel: [Subpixel::None, Subpixel::Parabola, Subpixel::Equiangular][usize::from(sub)],
             };
             let mut expected = vec![0f32; width];
