@@ -274,6 +274,32 @@ pub(crate) fn refined_offset<C: Cost>(c: &[C], ks: Range<usize>, best: usize, me
 mod tests {
     use super::*;
 
+    /// Right view winners (disparity indices) of an 8-pixel row, stored as the check reads them
+    /// (right pixel `xr` at `width − 1 − xr`): background 2 at xr 0–3, foreground 6 from xr 4.
+    fn right_row() -> Vec<u16> {
+        let by_xr = [2u16, 2, 2, 2, 6, 6, 6, 6];
+        by_xr.iter().rev().copied().collect()
+    }
+
+    #[test]
+    fn the_left_neighbour_rescues_only_would_be_occlusions() {
+        let right = right_row();
+        // Background 2 matched at the foreground's first right pixel (xr 4): an occlusion for the
+        // plain check, passes against xr 3 with the neighbour.
+        assert_eq!(left_right_check(&right, 4, 2.0, 0, 1.0, false), Err(true));
+        assert_eq!(left_right_check(&right, 4, 2.0, 0, 1.0, true), Ok(()));
+        // Two pixels into the foreground, the neighbour is foreground too: still occluded.
+        assert_eq!(left_right_check(&right, 5, 2.0, 0, 1.0, true), Err(true));
+        // A foreground value against the background (a mismatch, not an occlusion) is never
+        // rescued.
+        assert_eq!(left_right_check(&right, 3, 6.0, 0, 1.0, true), Err(false));
+        // Outside the image, or a neighbour without a winner: no rescue.
+        assert_eq!(left_right_check(&right, 8, 2.0, 0, 1.0, true), Err(false));
+        let mut holey = right.clone();
+        holey[8 - 1 - 3] = u16::NONE;
+        assert_eq!(left_right_check(&holey, 4, 2.0, 0, 1.0, true), Err(true));
+    }
+
     #[test]
     fn subpixel_offsets() {
         let v = |x: f32| x.abs();
