@@ -189,6 +189,9 @@ pub enum MatcherReport {
         p2: u16,
         uniqueness: u32,
         lr_max_diff: Option<f32>,
+        /// Whether a would-be occlusion passes against the right view's left neighbour
+        /// (default yes, `--fill` no; docs/accuracy.md).
+        lr_left_neighbour: bool,
         subpixel: &'static str,
         median: bool,
         speckle_size: usize,
@@ -330,6 +333,7 @@ impl MatcherReport {
                 p2: p.p2,
                 uniqueness: p.uniqueness_ratio,
                 lr_max_diff: p.lr_max_diff,
+                lr_left_neighbour: p.lr_left_neighbour,
                 subpixel: p.subpixel.name(),
                 median: p.median,
                 speckle_size: p.speckle_size,

@@ -210,7 +210,7 @@ pub struct SgmParams {
     /// disparity one pixel to the left of the matched pixel agrees. The right view's disparities
     /// come from the left volume, whose foreground spreads about a pixel into the background
     /// beside a depth edge; without this, background pixels matched correctly right after such
-    /// an edge are rejected (docs/robustness.md: 65–87 % of the pixels it keeps are right on six
+    /// an edge are rejected (docs/accuracy.md: 65–87 % of the pixels it keeps are right on six
     /// of the seven scenes). Off for [`SgmParams::with_fill`], whose fill does better with them.
     pub lr_left_neighbour: bool,
     pub subpixel: Subpixel,

@@ -204,7 +204,7 @@ pub(crate) fn keep_smaller<C: Cost, I: WinnerIndex>(
 /// With `left_neighbour`, a would-be occlusion also passes when the right pixel one to the left,
 /// `xr − 1`, agrees: the right view's winners come from the left volume, whose foreground
 /// spreads about a pixel into the background beside a depth edge, so right after such an edge
-/// the check otherwise rejects background pixels that matched correctly (docs/robustness.md).
+/// the check otherwise rejects background pixels that matched correctly (docs/accuracy.md).
 #[inline(always)]
 pub(crate) fn left_right_check<I: WinnerIndex>(
     right_index: &[I],

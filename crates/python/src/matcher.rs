@@ -341,6 +341,7 @@ impl Matcher {
                 d.set_item("p2", p.p2)?;
                 d.set_item("uniqueness", p.uniqueness_ratio)?;
                 d.set_item("lr_max_diff", p.lr_max_diff)?;
+                d.set_item("lr_left_neighbour", p.lr_left_neighbour)?;
                 d.set_item("subpixel", p.subpixel.name())?;
                 d.set_item("single_pass", p.single_pass)?;
                 d.set_item("search", p.search.name())?;

@@ -147,6 +147,7 @@ def test_help_lists_every_option_with_its_default():
         11, "census", 10, 1.0, "parabola")
     assert sd.Matcher(fill=True).params["speckle_size"] == 400
     assert sd.Matcher(fill=True).params["lr_max_diff"] == 1.0
+    assert sd.Matcher().params["lr_left_neighbour"] and not sd.Matcher(fill=True).params["lr_left_neighbour"]
     assert sd.Matcher(preset="fast").params["paths"] == 4
     assert sd.Matcher().params["search"] == "auto"
     assert sd.Matcher(search="hierarchical").params["search"] == "hierarchical"
