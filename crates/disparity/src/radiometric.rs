@@ -83,6 +83,9 @@ impl CoarseMatch {
             speckle_size: 0,
             confidence: false,
             max_memory: None,
+            // The plain check: the tone fit, the clipping and the noise measurements want the
+            // surest pairs, not the most pixels.
+            lr_left_neighbour: false,
             ..params.clone()
         };
         let disparity = sgm(&l, &r, &coarse).ok()?;
