@@ -24,7 +24,7 @@ use crate::cost::{AdRows, BtRow};
 use crate::kernels::layout::{padded_lanes, BandRow, PathIn, PAD};
 use crate::kernels::{self, Features, Level};
 use crate::status::{tagged_nan, PixelStatus};
-use crate::winner::{ambiguous, refined_offset, Ties};
+use crate::winner::{ambiguous, left_right_check, refined_offset, Ties};
 use crate::{DisparityMap, DisparityRange, PathCount};
 
 /// Fine-level disparities added on each side of the coarse neighbourhood's span: a coarse
@@ -644,19 +644,15 @@ fn select_row(
         }
         if let Some(max_diff) = sel.lr_max_diff {
             let xr = x as i64 - i64::from(d_int);
-            let kr = scratch.right_index[(width as i64 - 1 - xr) as usize];
-            let dr = sel.range.min + i32::from(kr);
-            // As `winner::left_right_check`, with its `left_neighbour`.
-            let agrees = |k: u16| {
-                k != NONE && ((sel.range.min + i32::from(k)) as f32 - d_int as f32).abs() <= max_diff
-            };
-            let neighbour = sel.lr_left_neighbour
-                && kr != NONE
-                && dr > d_int
-                && xr >= 1
-                && agrees(scratch.right_index[(width as i64 - xr) as usize]);
-            if !agrees(kr) && !neighbour {
-                let occluded = kr != NONE && dr > d_int;
+            let check = left_right_check(
+                &scratch.right_index,
+                xr,
+                d_int as f32,
+                i64::from(sel.range.min),
+                max_diff,
+                sel.lr_left_neighbour,
+            );
+            if let Err(occluded) = check {
                 *o = tagged_nan(if occluded { PixelStatus::Occluded } else { PixelStatus::Mismatch });
                 continue;
             }

@@ -151,10 +151,11 @@ fn level_span(samples: &[ToneSample]) -> (usize, usize) {
 }
 
 /// The monotone curve that maps the right levels of matched pairs (`right`, sorted) onto their
-/// left levels (`left`, in any order) of the same rank (quantile matching: the matched pixels show both views the same surfaces, so
-/// their two level distributions differ only by the curve, and mismatched pairs, which blur a
-/// per-level median towards the mean, barely move the quantiles); linear between [`KNOTS`]
-/// quantiles and beyond them with the mean slope of the outermost few. `None` where the quantiles
+/// left levels (`left`, in any order) of the same rank (quantile matching: the matched pixels
+/// show both views the same surfaces, so their two level distributions differ only by the curve,
+/// and mismatched pairs, which blur a per-level median towards the mean, barely move the
+/// quantiles); linear between [`KNOTS`] quantiles and beyond them with the mean slope of the
+/// outermost few. `None` where the quantiles
 /// hold fewer than two right levels.
 fn fit_curve(right: &[f32], mut left: Vec<f32>) -> Option<[f32; 256]> {
     left.sort_unstable_by(f32::total_cmp);

@@ -607,8 +607,8 @@ struct PatchMatch {
 /// Bilinear interpolation smooths what it samples by an amount that depends on the fraction
 /// (none at whole pixels), so a fit that interpolates one view only prefers whole pixels on
 /// sharp views, half pixels on a noisy one, and is pulled either way by a view blurred against a
-/// sharp one (Middlebury pairs: a 0.25 px shift read as 0.16–0.21, a 0.1° rotation as 0.06–0.09°, noise
-/// σ 6 in one view added 0.06–0.08 px, blur σ 1.5 up to 0.28 px). Two measures keep that small:
+/// sharp one (Middlebury pairs: a 0.25 px shift read as 0.16–0.21, a 0.1° rotation as
+/// 0.06–0.09°, noise σ 6 in one view added 0.06–0.08 px, blur σ 1.5 up to 0.28 px). Two measures keep that small:
 /// both views are first smoothed by a binomial σ 1 px kernel (then the interpolation adds little
 /// smoothing of its own), and the sub-pixel part `s` of the shift is split evenly, the left
 /// patch sampled at `−s/2` and the right one at `+s/2`, so both are smoothed alike at every shift.

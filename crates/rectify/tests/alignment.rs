@@ -226,8 +226,8 @@ fn real_scenes_when_available() {
 
 /// The right view degraded (`stereo-degrade`, as `stereo-depth degrade` does) reads the clean
 /// pair's offset plus what the degradation adds. The fit once interpolated the right view only,
-/// which read 0.25 px as 0.16–0.21, 0.1° as 0.06–0.09°, and added 0.06–0.08 px under noise σ 6 and up to
-/// 0.28 px under blur σ 1.5 (docs/robustness.md).
+/// which read 0.25 px as 0.16–0.21, 0.1° as 0.06–0.09°, and added 0.06–0.08 px under noise σ 6
+/// and up to 0.28 px under blur σ 1.5 (docs/robustness.md).
 fn unbiased_under_degradations(
     scene: &str,
     left: &GrayImage,
