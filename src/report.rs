@@ -242,6 +242,9 @@ pub struct AdaptationReport {
     /// Whether census compared smoothed views (Gaussian σ 1 px): residual above 8 or blockiness
     /// above 1.05.
     pub census_smoothing: bool,
+    /// How much darker than the centre a neighbour had to be to set its census bit (8-bit grey
+    /// levels): 1 where both views were smoothed for noise or JPEG, else 0.
+    pub census_tolerance_grey: f32,
     /// The penalties used, after raising them for a noisy cost.
     pub p1_used: u16,
     pub p2_used: u16,
@@ -349,6 +352,7 @@ impl MatcherReport {
                     census_residual_bits: a.census_residual,
                     blockiness: a.blockiness,
                     census_smoothing: a.census_smoothing,
+                    census_tolerance_grey: f32::from(a.census_tolerance) / 257.0,
                     p1_used: a.p1,
                     p2_used: a.p2,
                     p2_edge_scale_used: a.p2_edge_scale,
@@ -496,8 +500,13 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
         } else {
             penalties
         };
-        let penalties =
-            if a.census_smoothing { format!("{penalties}, census on smoothed views") } else { penalties };
+        let penalties = match (a.census_smoothing, a.census_tolerance_grey) {
+            (true, t) if t > 0.0 => {
+                format!("{penalties}, census on smoothed views (tolerance {t} grey level)")
+            }
+            (true, _) => format!("{penalties}, census on smoothed views"),
+            (false, _) => penalties,
+        };
         writeln!(out, "cost          {cost}, {penalties}")?;
     }
     if let MatcherReport::Sgm {

@@ -12,12 +12,27 @@ use crate::{CensusWindow, GrayImage, Image};
 /// Bit order: window positions row by row, skipping the centre; a bit is 1 when that
 /// neighbour is darker than the centre. Outside the image the nearest border pixel is used.
 pub(crate) fn census_transform(image: &GrayImage, window: CensusWindow, out: &mut Image<u64>) {
-    census_transform_with(image, window, out, CensusKernel::for_level(crate::kernels::features().level))
+    census_transform_tolerant(image, window, 0, out)
+}
+
+/// [`census_transform`] where a neighbour counts as darker only when it is darker than the centre
+/// by more than `tolerance` (in samples, 257 per 8-bit grey level): on smoothed noisy views,
+/// differences this small are mostly what remains of the noise, and in flat areas they would
+/// give the two views unrelated bit strings (docs/robustness.md).
+pub(crate) fn census_transform_tolerant(
+    image: &GrayImage,
+    window: CensusWindow,
+    tolerance: u16,
+    out: &mut Image<u64>,
+) {
+    let kernel = CensusKernel::for_level(crate::kernels::features().level);
+    census_transform_with(image, window, tolerance, out, kernel)
 }
 
 fn census_transform_with(
     image: &GrayImage,
     window: CensusWindow,
+    tolerance: u16,
     out: &mut Image<u64>,
     kernel: CensusKernel,
 ) {
@@ -28,11 +43,13 @@ fn census_transform_with(
     }
     #[cfg(target_arch = "x86_64")]
     let kernel = match kernel {
-        CensusKernel::Gfni if is_byte_scaled(image) => CensusKernel::GfniBytes,
+        CensusKernel::Gfni if tolerance.is_multiple_of(257) && is_byte_scaled(image) => {
+            CensusKernel::GfniBytes
+        }
         k => k,
     };
     let samples = Samples { samples: image.as_slice(), width, height };
-    let shape = Window { width: window.width, height: window.height };
+    let shape = Window { width: window.width, height: window.height, tolerance };
     let rows_per_task = height.div_ceil(16).max(1);
     out.as_mut_slice().par_chunks_mut(width * rows_per_task).enumerate().for_each(|(task, rows)| {
         // Each window row, extended by the border pixels, so the inner loops need no clamping.
@@ -79,7 +96,8 @@ mod tests {
 
         #[test]
         fn every_kernel_matches_the_reference(width in 1usize..300, height in 1usize..20, window in 0usize..9,
-                                              levels in 1u32..=65535, scale in 0u8..3, seed in any::<u64>()) {
+                                              levels in 1u32..=65535, scale in 0u8..3, seed in any::<u64>(),
+                                              tolerance in prop_oneof![Just(0u16), Just(257), Just(514), any::<u16>()]) {
             let (ww, wh) = [(3, 3), (5, 5), (9, 7), (7, 9), (13, 5), (5, 13), (1, 3), (3, 1), (9, 3)][window];
             // Windows wider or taller than the image are not used by the matcher (as in the
             // fixed-size test below).
@@ -100,11 +118,11 @@ mod tests {
             });
             let window = CensusWindow { width: ww, height: wh };
             let mut reference = Image::new(width, height, 0u64);
-            crate::reference::census_transform(&img, window, &mut reference);
+            crate::reference::census_transform_tolerant(&img, window, tolerance, &mut reference);
             for kernel in kernels() {
                 let mut out = Image::new(width, height, 0x5555u64);
-                census_transform_with(&img, window, &mut out, kernel);
-                prop_assert!(out == reference, "{:?}, {}x{} window {}x{}", kernel, width, height, ww, wh);
+                census_transform_with(&img, window, tolerance, &mut out, kernel);
+                prop_assert!(out == reference, "{:?}, {}x{} window {}x{} tolerance {}", kernel, width, height, ww, wh, tolerance);
             }
         }
     }
@@ -116,6 +134,24 @@ mod tests {
         let mut out = Image::new(3, 3, 0u64);
         census_transform(&img, CensusWindow { width: 3, height: 3 }, &mut out);
         assert_eq!(out.get(1, 1), 0b1010_0101);
+    }
+
+    #[test]
+    fn the_tolerance_ignores_small_differences() {
+        // Neighbours 1, 2 and 3 samples darker than the centre (and one brighter).
+        let img = GrayImage::from_vec(5, 1, vec![9, 8, 10, 7, 6]).unwrap();
+        let window = CensusWindow { width: 5, height: 1 };
+        let bits = |tolerance| {
+            let mut out = Image::new(5, 1, 0u64);
+            census_transform_tolerant(&img, window, tolerance, &mut out);
+            out.get(2, 0)
+        };
+        // Bits in window order 9, 8, 7, 6 (centre 10 skipped).
+        assert_eq!(bits(0), 0b1111);
+        assert_eq!(bits(1), 0b0111);
+        assert_eq!(bits(2), 0b0011);
+        assert_eq!(bits(3), 0b0001);
+        assert_eq!(bits(4), 0);
     }
 
     #[test]

@@ -72,6 +72,10 @@ pub struct Adaptation {
     /// view received before census, instead of the σ 1 smoothing of both views; `None` when the
     /// views are about equally sharp (or not measured).
     pub sharper_view_blur: Option<(bool, f32)>,
+    /// How much darker than the centre (in 16-bit samples, 257 per 8-bit grey level) a neighbour
+    /// had to be to set its census bit: one grey level where both views were smoothed for noise
+    /// or JPEG, else 0.
+    pub census_tolerance: u16,
     /// The penalties used: [`SgmParams::p1`] and [`SgmParams::p2`], raised for a noisy cost.
     pub p1: u16,
     pub p2: u16,

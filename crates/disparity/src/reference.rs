@@ -228,6 +228,17 @@ fn row_step(
 
 /// The original census transform (clamped reads per neighbour).
 pub(crate) fn census_transform(image: &GrayImage, window: CensusWindow, out: &mut Image<u64>) {
+    census_transform_tolerant(image, window, 0, out)
+}
+
+/// The census transform where a neighbour must be darker than the centre by more than
+/// `tolerance` (clamped reads per neighbour).
+pub(crate) fn census_transform_tolerant(
+    image: &GrayImage,
+    window: CensusWindow,
+    tolerance: u16,
+    out: &mut Image<u64>,
+) {
     let (width, height) = image.size();
     debug_assert_eq!(out.size(), (width, height));
     let (rx, ry) = ((window.width / 2) as isize, (window.height / 2) as isize);
@@ -244,7 +255,7 @@ pub(crate) fn census_transform(image: &GrayImage, window: CensusWindow, out: &mu
                         continue;
                     }
                     let v = r[(x as isize + dx).clamp(0, width as isize - 1) as usize];
-                    bits = (bits << 1) | u64::from(v < centre);
+                    bits = (bits << 1) | u64::from(u32::from(v) + u32::from(tolerance) < u32::from(centre));
                 }
             }
             *bits_out = bits;
@@ -359,7 +370,7 @@ pub(crate) fn sgm_reference_ad(
     let census_bits = (params.census.width * params.census.height - 1) as u32;
     let crate::sgm::Adapted {
         params: adapted, census_left, census_right, matching_left, matching_right, ..
-    } = crate::sgm::adapt_to_pair(left, right, params, census_transform);
+    } = crate::sgm::adapt_to_pair(left, right, params, census_transform_tolerant);
     let params = &adapted;
     let original_left = left;
     let (left, right) = (matching_left.as_ref().unwrap_or(left), matching_right.as_ref().unwrap_or(right));

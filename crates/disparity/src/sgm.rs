@@ -2,7 +2,7 @@
 
 use crate::aggregate::{aggregate_and_select, stream_and_select, Inputs, P2Table, MAX_P2};
 use crate::buffer::ZeroedBuffer;
-use crate::census::census_transform;
+use crate::census::census_transform_tolerant;
 use crate::confidence::census_confidence;
 use crate::cost::infeasible_cost;
 use crate::hierarchical::{aggregate_bands, stream_bands, Bands};
@@ -40,7 +40,7 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     }
     crate::check_range(&params.range, width)?;
     let Adapted { params: adapted, census_left, census_right, matching_left, matching_right, adaptation } =
-        adapt_to_pair(left, right, params, census_transform);
+        adapt_to_pair(left, right, params, census_transform_tolerant);
     let params = &adapted;
 
     memory::plan(width, height, params).check(width, height, params)?;
@@ -83,7 +83,7 @@ pub(crate) fn adapt_to_pair(
     left: &GrayImage,
     right: &GrayImage,
     params: &SgmParams,
-    census: impl Fn(&GrayImage, crate::CensusWindow, &mut Image<u64>) + Sync,
+    census: impl Fn(&GrayImage, crate::CensusWindow, u16, &mut Image<u64>) + Sync,
 ) -> Adapted {
     let (width, height) = left.size();
     let coarse = params.adapt_to_pair.then(|| CoarseMatch::new(left, right, params, sgm)).flatten();
@@ -118,14 +118,14 @@ pub(crate) fn adapt_to_pair(
     // The pair's noise is measured on the views as given: clipped alike, the flat areas would
     // match perfectly and hide it.
     rayon::join(
-        || census(input_left, params.census, &mut census_left),
-        || census(input_right, params.census, &mut census_right),
+        || census(input_left, params.census, 0, &mut census_left),
+        || census(input_right, params.census, 0, &mut census_right),
     );
     let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
     if clipped.is_some() {
         rayon::join(
-            || census(left, params.census, &mut census_left),
-            || census(right, params.census, &mut census_right),
+            || census(left, params.census, 0, &mut census_left),
+            || census(right, params.census, 0, &mut census_right),
         );
     }
     let blockiness = params.adapt_to_pair.then(|| blockiness(input_left).min(blockiness(input_right)));
@@ -134,6 +134,7 @@ pub(crate) fn adapt_to_pair(
     // closer (docs/robustness.md).
     let census_smoothing = smooths_census(residual, blockiness);
     let mut sharper_view_blur = None;
+    let mut census_tolerance = 0;
     if census_smoothing {
         // A one-sided defocus (no JPEG blocks, whose views are equally sharp): the sharper view is
         // blurred to nearly match the other instead of both being smoothed (docs/robustness.md).
@@ -150,9 +151,15 @@ pub(crate) fn adapt_to_pair(
                 || crate::radiometric::gaussian_blur(right, sigma),
             ),
         };
+        // Both views smoothed for noise or JPEG: what differences of a grey level or less remain
+        // are mostly noise, and in flat areas they gave the views unrelated bit strings. (A
+        // one-sided blur has no such noise: measured worse there, docs/robustness.md.)
+        if sharper_view_blur.is_none() {
+            census_tolerance = NOISY_CENSUS_TOLERANCE;
+        }
         rayon::join(
-            || census(&l, params.census, &mut census_left),
-            || census(&r, params.census, &mut census_right),
+            || census(&l, params.census, census_tolerance, &mut census_left),
+            || census(&r, params.census, census_tolerance, &mut census_right),
         );
     }
     // The dense output's stricter left-right check and fill do better with the penalties of the
@@ -182,6 +189,7 @@ pub(crate) fn adapt_to_pair(
         blockiness,
         census_smoothing,
         sharper_view_blur,
+        census_tolerance,
         p1: adapted.p1,
         p2: adapted.p2,
         p2_edge_scale: adapted.p2_edge_scale,
@@ -271,6 +279,10 @@ pub(crate) fn smooths_census(residual: Option<f32>, blockiness: Option<f32>) -> 
 
 /// How much more P2 the default output takes on a noisy or JPEG pair ([`adapt_to_pair`]) …
 const NOISY_P2_FACTOR: u16 = 2;
+
+/// The census tolerance on noisy and JPEG pairs (both views smoothed): one 8-bit grey level in
+/// samples. Measured 0, ½, 1 and 1½ levels on noise σ 6 and JPEG 50 (docs/robustness.md).
+pub(crate) const NOISY_CENSUS_TOLERANCE: u16 = 257;
 /// … lowered across image edges as `P2 · s / (s + ΔI)` with this `s` ([`SgmParams::p2_edge_scale`]).
 const NOISY_P2_EDGE_SCALE: u16 = 30;
 

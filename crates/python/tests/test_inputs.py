@@ -174,11 +174,12 @@ def test_noisy_pairs_take_an_edge_aware_p2_for_the_default_output(pair):
     left, right = pair
     clean = sd.Matcher(max_disparity=32).compute_detailed(left, right).adaptation
     assert not clean["census_smoothing"] and clean["p2_edge_scale"] == 0 and clean["p2"] == 80
-    # Independent sensor noise in both views: census on smoothed views, P2 raised and lowered
-    # across image edges, for the default output only.
+    assert clean["census_tolerance"] == 0
+    # Independent sensor noise in both views: census on smoothed views with a one-grey-level
+    # tolerance, P2 raised and lowered across image edges, for the default output only.
     rng = np.random.default_rng(3)
     noisy = [np.clip(v.astype(np.float32) + rng.normal(0, 12, v.shape), 0, 255).astype(np.uint8) for v in pair]
     a = sd.Matcher(max_disparity=32).compute_detailed(*noisy).adaptation
-    assert a["census_smoothing"] and a["p2_edge_scale"] == 30
+    assert a["census_smoothing"] and a["p2_edge_scale"] == 30 and a["census_tolerance"] == 1
     f = sd.Matcher(max_disparity=32, fill=True).compute_detailed(*noisy).adaptation
     assert f["census_smoothing"] and f["p2_edge_scale"] == 0 and f["p2"] >= 80 and a["p2"] == 2 * f["p2"]

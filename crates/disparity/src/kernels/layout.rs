@@ -174,9 +174,11 @@ impl<'a> Samples<'a> {
     }
 }
 
-/// A census window: odd `width × height`, at most 65 pixels (64 census bits).
+/// A census window: odd `width × height`, at most 65 pixels (64 census bits), and how much darker
+/// than the centre a neighbour must be to set its bit (more than `tolerance`, in samples).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Window {
     pub width: usize,
     pub height: usize,
+    pub tolerance: u16,
 }

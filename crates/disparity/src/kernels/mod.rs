@@ -620,7 +620,7 @@ pub(crate) fn census_row(
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `CensusKernel::GfniBytes` is only made from `CensusKernel::Gfni` (so the CPU has what it
         // needs) and then `high_bytes` is as long as `padded`; the image is at least 64 wide.
-        CensusKernel::GfniBytes if image.width >= 64 => unsafe {
+        CensusKernel::GfniBytes if image.width >= 64 && window.tolerance.is_multiple_of(257) => unsafe {
             avx512::census_row_gfni_bytes(image, window, y, high_bytes, bits)
         },
         #[cfg(target_arch = "x86_64")]

@@ -257,7 +257,8 @@ pub(crate) fn pad_window_rows(image: Samples<'_>, window: Window, y: usize, padd
 }
 
 /// One row of the transform: one pass over the row per window position, so the comparisons of
-/// many pixels run side by side.
+/// many pixels run side by side. A bit is set when the neighbour is darker than the centre by
+/// more than the window's tolerance.
 #[inline(always)]
 pub(crate) fn census_row_scalar(
     image: Samples<'_>,
@@ -271,6 +272,7 @@ pub(crate) fn census_row_scalar(
     let (rx, ry) = (window.width / 2, window.height / 2);
     let pw = width + 2 * rx;
     let centre = image.row(y);
+    let tolerance = window.tolerance;
     bits.fill(0);
     for (dy, p) in padded.chunks_exact(pw).enumerate() {
         for dx in 0..window.width {
@@ -279,7 +281,7 @@ pub(crate) fn census_row_scalar(
             }
             let neighbours = &p[dx..dx + width];
             for ((b, &n), &c) in bits.iter_mut().zip(neighbours).zip(centre) {
-                *b = (*b << 1) | u64::from(n < c);
+                *b = (*b << 1) | u64::from(n < c.saturating_sub(tolerance));
             }
         }
     }

@@ -128,6 +128,7 @@ pub(in crate::kernels) unsafe fn census_row_gfni(
     let offsets = neighbour_offsets(window, pw);
     // Rows `n..64` of the matrix stay zero.
     let mut matrix = BitRows([0; 64]);
+    let tolerance = _mm512_set1_epi16(window.tolerance as i16);
     let mut x0 = 0;
     loop {
         // The last block overlaps the one before it when the width is not a multiple of 64.
@@ -139,6 +140,8 @@ pub(in crate::kernels) unsafe fn census_row_gfni(
                 _mm512_loadu_si512(centre.as_ptr().add(x + 32).cast()),
             )
         };
+        // `n < c - tolerance` (saturating) is `n + tolerance < c`.
+        let (c_lo, c_hi) = (_mm512_subs_epu16(c_lo, tolerance), _mm512_subs_epu16(c_hi, tolerance));
         for (m, &o) in matrix.halves_mut().chunks_exact_mut(2).zip(&offsets[..n]) {
             // SAFETY: `o = dy * pw + dx` with `dy < window.height` and `dx < window.width`, so
             // `o + x + 64 <= dy * pw + (2 * rx + width) = (dy + 1) * pw <= padded.len()`.
@@ -176,7 +179,7 @@ fn neighbour_offsets(window: Window, pw: usize) -> [usize; 64] {
 
 /// [`census_row_gfni`] for images whose samples are all multiples of 257 (see
 /// `census::is_byte_scaled`): the window rows are padded as high bytes, and one comparison of 64
-/// bytes gives a whole mask.
+/// bytes gives a whole mask. The window's tolerance must be a multiple of 257.
 ///
 /// # Safety
 /// The CPU must have AVX-512F/BW/VL/VBMI and GFNI; the image at least 64 pixels wide.
@@ -206,11 +209,13 @@ pub(in crate::kernels) unsafe fn census_row_gfni_bytes(
     let offsets = neighbour_offsets(window, pw);
     let centre = &padded[ry * pw + rx..ry * pw + rx + width];
     let mut matrix = BitRows([0; 64]);
+    // Byte-scaled samples: the tolerance in high bytes (a multiple of 257, checked by the caller).
+    let tolerance = _mm512_set1_epi8((window.tolerance / 257) as i8);
     let mut x0 = 0;
     loop {
         let x = x0.min(width - 64);
         // SAFETY: `x + 64 <= width`: inside the centre row.
-        let c = unsafe { _mm512_loadu_si512(centre.as_ptr().add(x).cast()) };
+        let c = unsafe { _mm512_subs_epu8(_mm512_loadu_si512(centre.as_ptr().add(x).cast()), tolerance) };
         for (m, &o) in matrix.0.iter_mut().zip(&offsets[..n]) {
             // SAFETY: `o = dy * pw + dx` with `dy < window.height` and `dx < window.width`, so
             // `o + x + 64 <= dy * pw + (2 * rx + width) = (dy + 1) * pw <= padded.len()`.
