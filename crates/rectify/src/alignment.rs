@@ -707,17 +707,26 @@ impl Smoothed {
         const SOURCE: usize = WINDOW + 4;
         let (x0, y0) = (cx - WINDOW_RADIUS as i64, cy - WINDOW_RADIUS as i64);
         let clamp = |v: i64, n: usize| v.clamp(0, n as i64 - 1) as usize;
-        // Rows first: SOURCE rows of WINDOW smoothed columns.
+        // Rows first: SOURCE rows of WINDOW smoothed columns, from the SOURCE columns around the
+        // window (the borders replicated).
         let mut rows = [0f64; SOURCE * WINDOW];
+        let mut source = [0f64; SOURCE];
+        let inside = x0 >= 2 && x0 - 2 + SOURCE as i64 <= image.width as i64;
         for j in 0..SOURCE {
             let row = image.row(clamp(y0 + j as i64 - 2, image.height));
+            if inside {
+                let start = (x0 - 2) as usize;
+                for (s, &v) in source.iter_mut().zip(&row[start..start + SOURCE]) {
+                    *s = f64::from(v);
+                }
+            } else {
+                for (i, s) in source.iter_mut().enumerate() {
+                    *s = f64::from(row[clamp(x0 + i as i64 - 2, image.width)]);
+                }
+            }
             for i in 0..WINDOW {
-                rows[j * WINDOW + i] = KERNEL
-                    .iter()
-                    .enumerate()
-                    .map(|(k, w)| w * row[clamp(x0 + (i + k) as i64 - 2, image.width)] as f64)
-                    .sum::<f64>()
-                    * UNIT;
+                rows[j * WINDOW + i] =
+                    KERNEL.iter().enumerate().map(|(k, w)| w * source[i + k]).sum::<f64>() * UNIT;
             }
         }
         let mut value = [0f64; WINDOW * WINDOW];
