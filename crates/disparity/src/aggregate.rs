@@ -949,8 +949,8 @@ mod tests {
             let right = GrayImage::from_fn(w, h, |x, y| left.get((x + 2) % w, y) ^ ((x * y) as u16 & 0x0300));
             let window = CensusWindow { width: 5, height: 5 };
             let (mut cl, mut cr) = (Image::new(w, h, 0u64), Image::new(w, h, 0u64));
-            census_transform(&left, window, &mut cl);
-            census_transform(&right, window, &mut cr);
+            census_transform(&left, window, 0, &mut cl);
+            census_transform(&right, window, 0, &mut cr);
             let mut cost = vec![0u8; w * h * nd];
             hamming_cost_volume(&cl, &cr, range, 24, &mut cost);
             let paths = if four { PathCount::Four } else { PathCount::Eight };

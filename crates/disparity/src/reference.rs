@@ -226,14 +226,9 @@ fn row_step(
     };
 }
 
-/// The original census transform (clamped reads per neighbour).
-pub(crate) fn census_transform(image: &GrayImage, window: CensusWindow, out: &mut Image<u64>) {
-    census_transform_tolerant(image, window, 0, out)
-}
-
-/// The census transform where a neighbour must be darker than the centre by more than
-/// `tolerance` (clamped reads per neighbour).
-pub(crate) fn census_transform_tolerant(
+/// The original census transform (clamped reads per neighbour), where a neighbour must be darker
+/// than the centre by more than `tolerance` to set its bit.
+pub(crate) fn census_transform(
     image: &GrayImage,
     window: CensusWindow,
     tolerance: u16,
@@ -370,7 +365,7 @@ pub(crate) fn sgm_reference_ad(
     let census_bits = (params.census.width * params.census.height - 1) as u32;
     let crate::sgm::Adapted {
         params: adapted, census_left, census_right, matching_left, matching_right, ..
-    } = crate::sgm::adapt_to_pair(left, right, params, census_transform_tolerant);
+    } = crate::sgm::adapt_to_pair(left, right, params, census_transform);
     let params = &adapted;
     let original_left = left;
     let (left, right) = (matching_left.as_ref().unwrap_or(left), matching_right.as_ref().unwrap_or(right));

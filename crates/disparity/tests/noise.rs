@@ -1,26 +1,14 @@
 //! Sensor noise in both views: census compares smoothed views and ignores differences of a grey
 //! level, on a generated scene with known disparities.
 
-use stereo_disparity::{sgm_detailed, DisparityRange, GrayImage, SgmOutput, SgmParams};
-use stereo_scene::{Scene, SceneParams};
+mod common;
 
-/// A 480×360 scene in 8-bit levels (stored ×257, as the loader stores 8-bit images) with
-/// independent Gaussian noise of `sigma` grey levels in each view.
+use stereo_disparity::{sgm_detailed, DisparityRange, SgmOutput, SgmParams};
+use stereo_scene::Scene;
+
+/// A 480×360 scene in 8-bit levels with noise of `sigma` grey levels in each view.
 fn scene(sigma: f32) -> Scene {
-    let mut scene = stereo_scene::render(&SceneParams {
-        width: 480,
-        height: 360,
-        noise: sigma * 257.0,
-        ..SceneParams::default()
-    });
-    let to_8bit = |image: &GrayImage| {
-        GrayImage::from_fn(image.width(), image.height(), |x, y| {
-            ((f32::from(image.get(x, y)) / 257.0).round() as u16) * 257
-        })
-    };
-    scene.left = to_8bit(&scene.left);
-    scene.right = to_8bit(&scene.right);
-    scene
+    common::scene_8bit(sigma * 257.0)
 }
 
 /// Share (%) of the non-occluded pixels (right of the left band) within 1 px of the truth,

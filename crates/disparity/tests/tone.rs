@@ -1,25 +1,14 @@
 //! Views exposed differently (gain, vignetting): the matcher maps the right view's tones onto the
 //! left's and keeps AD-census' intensity term, on a generated scene with known disparities.
 
-use stereo_disparity::{sgm_detailed, DisparityRange, GrayImage, SgmOutput, SgmParams};
-use stereo_scene::{Scene, SceneParams};
+mod common;
 
-/// A 480×360 scene in 8-bit levels (stored ×257, as the loader stores 8-bit images).
+use stereo_disparity::{sgm_detailed, DisparityRange, GrayImage, SgmOutput, SgmParams};
+use stereo_scene::Scene;
+
+/// A 480×360 scene in 8-bit levels with a little noise.
 fn scene() -> Scene {
-    let mut scene = stereo_scene::render(&SceneParams {
-        width: 480,
-        height: 360,
-        noise: 1000.0,
-        ..SceneParams::default()
-    });
-    let to_8bit = |image: &GrayImage| {
-        GrayImage::from_fn(image.width(), image.height(), |x, y| {
-            ((f32::from(image.get(x, y)) / 257.0).round() as u16) * 257
-        })
-    };
-    scene.left = to_8bit(&scene.left);
-    scene.right = to_8bit(&scene.right);
-    scene
+    common::scene_8bit(1000.0)
 }
 
 /// A right view's 8-bit level from the true level and the centred position `(u, v)`.
