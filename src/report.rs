@@ -352,7 +352,7 @@ impl MatcherReport {
                     census_residual_bits: a.census_residual,
                     blockiness: a.blockiness,
                     census_smoothing: a.census_smoothing,
-                    census_tolerance_grey: f32::from(a.census_tolerance) / 257.0,
+                    census_tolerance_grey: a.census_tolerance_grey(),
                     p1_used: a.p1,
                     p2_used: a.p2,
                     p2_edge_scale_used: a.p2_edge_scale,

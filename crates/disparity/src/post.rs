@@ -84,6 +84,13 @@ pub struct Adaptation {
     pub p2_edge_scale: u16,
 }
 
+impl Adaptation {
+    /// [`Adaptation::census_tolerance`] in 8-bit grey levels.
+    pub fn census_tolerance_grey(&self) -> f32 {
+        f32::from(self.census_tolerance) / 257.0
+    }
+}
+
 impl SgmOutput {
     /// 255 where the disparity was filled rather than matched, 0 elsewhere.
     pub fn filled_mask(&self) -> Image<u8> {

@@ -279,12 +279,12 @@ pub(crate) fn smooths_census(residual: Option<f32>, blockiness: Option<f32>) -> 
 
 /// How much more P2 the default output takes on a noisy or JPEG pair ([`adapt_to_pair`]) …
 const NOISY_P2_FACTOR: u16 = 2;
+/// … lowered across image edges as `P2 · s / (s + ΔI)` with this `s` ([`SgmParams::p2_edge_scale`]).
+const NOISY_P2_EDGE_SCALE: u16 = 30;
 
 /// The census tolerance on noisy and JPEG pairs (both views smoothed): one 8-bit grey level in
 /// samples. Measured 0, ½, 1 and 1½ levels on noise σ 6 and JPEG 50 (docs/robustness.md).
-pub(crate) const NOISY_CENSUS_TOLERANCE: u16 = 257;
-/// … lowered across image edges as `P2 · s / (s + ΔI)` with this `s` ([`SgmParams::p2_edge_scale`]).
-const NOISY_P2_EDGE_SCALE: u16 = 30;
+const NOISY_CENSUS_TOLERANCE: u16 = 257;
 
 /// The largest [`blockiness`] of an uncompressed view (1.02 on the Middlebury scenes) …
 const CLEAN_BLOCKINESS: f32 = 1.05;

@@ -296,7 +296,7 @@ impl Matcher {
                 d.set_item("census_residual", a.census_residual)?;
                 d.set_item("blockiness", a.blockiness)?;
                 d.set_item("census_smoothing", a.census_smoothing)?;
-                d.set_item("census_tolerance", f32::from(a.census_tolerance) / 257.0)?;
+                d.set_item("census_tolerance", a.census_tolerance_grey())?;
                 d.set_item("p1", a.p1)?;
                 d.set_item("p2", a.p2)?;
                 d.set_item("p2_edge_scale", a.p2_edge_scale)?;

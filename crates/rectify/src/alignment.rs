@@ -608,10 +608,11 @@ struct PatchMatch {
 /// (none at whole pixels), so a fit that interpolates one view only prefers whole pixels on
 /// sharp views, half pixels on a noisy one, and is pulled either way by a view blurred against a
 /// sharp one (Middlebury pairs: a 0.25 px shift read as 0.16–0.21, a 0.1° rotation as
-/// 0.06–0.09°, noise σ 6 in one view added 0.06–0.08 px, blur σ 1.5 up to 0.28 px). Two measures keep that small:
-/// both views are first smoothed by a binomial σ 1 px kernel (then the interpolation adds little
-/// smoothing of its own), and the sub-pixel part `s` of the shift is split evenly, the left
-/// patch sampled at `−s/2` and the right one at `+s/2`, so both are smoothed alike at every shift.
+/// 0.06–0.09°, noise σ 6 in one view added 0.06–0.08 px, blur σ 1.5 up to 0.28 px). Two measures
+/// keep that small: both views are first smoothed by a binomial σ 1 px kernel (then the
+/// interpolation adds little smoothing of its own), and the sub-pixel part `s` of the shift is
+/// split evenly, the left patch sampled at `−s/2` and the right one at `+s/2`, so both are
+/// smoothed alike at every shift.
 fn refine(left: &Full, right: &Full, x: usize, y: usize, xr: i32, dy: i32) -> Option<PatchMatch> {
     const N: usize = 2 * RADIUS + 1;
     let (u0, v0) = ((xr - x as i32) as f64, dy as f64);
@@ -711,18 +712,10 @@ impl Smoothed {
         // window (the borders replicated).
         let mut rows = [0f64; SOURCE * WINDOW];
         let mut source = [0f64; SOURCE];
-        let inside = x0 >= 2 && x0 - 2 + SOURCE as i64 <= image.width as i64;
         for j in 0..SOURCE {
             let row = image.row(clamp(y0 + j as i64 - 2, image.height));
-            if inside {
-                let start = (x0 - 2) as usize;
-                for (s, &v) in source.iter_mut().zip(&row[start..start + SOURCE]) {
-                    *s = f64::from(v);
-                }
-            } else {
-                for (i, s) in source.iter_mut().enumerate() {
-                    *s = f64::from(row[clamp(x0 + i as i64 - 2, image.width)]);
-                }
+            for (i, s) in source.iter_mut().enumerate() {
+                *s = f64::from(row[clamp(x0 + i as i64 - 2, image.width)]);
             }
             for i in 0..WINDOW {
                 rows[j * WINDOW + i] =
