@@ -10,6 +10,8 @@
 //! [`crate::DENSE_SPECKLE_SIZE`] pixels the matcher cannot tell one from a wrong match, so they are
 //! rejected, whatever their position in the image.
 
+use rayon::prelude::*;
+
 use crate::status::{tagged_nan, PixelStatus};
 use crate::{DisparityMap, DisparityRange};
 
@@ -61,61 +63,71 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
     let mut stack: Vec<u32> = Vec::new();
     let mut island: Vec<u32> = Vec::new();
     let mut rejected = 0;
-    // Row by row, so that the scan over every pixel divides by constants only.
-    for y in 0..h {
-        let row_tiles = (y / TILE) * tw;
-        for x in 0..w {
-            let start = y * w + x;
-            let (r, v) = (reference[row_tiles + x / TILE], d[start]);
-            if state[start] != UNSEEN || !(r > 0.0 && v.is_finite() && 2.0 * v < r) {
-                continue;
+    // The pixels that could start an island, found in parallel (row by row, so that the test of
+    // every pixel divides by constants only), in the order the searches take them. Rejection only
+    // turns pixels invalid, which makes no new start.
+    let starts: Vec<u32> = d
+        .par_chunks_exact(w)
+        .enumerate()
+        .flat_map_iter(|(y, row)| {
+            let row_tiles = (y / TILE) * tw;
+            let reference = &reference;
+            row.iter().enumerate().filter_map(move |(x, &v)| {
+                let r = reference[row_tiles + x / TILE];
+                (r > 0.0 && v.is_finite() && 2.0 * v < r).then_some((y * w + x) as u32)
+            })
+        })
+        .collect();
+    for start in starts {
+        let start = start as usize;
+        if state[start] != UNSEEN {
+            continue;
+        }
+        island.clear();
+        stack.clear();
+        state[start] = VISITED;
+        stack.push(start as u32);
+        let mut is_island = true;
+        'search: while let Some(p) = stack.pop() {
+            let p = p as usize;
+            let v = d[p];
+            island.push(p as u32);
+            if island.len() >= MAX_ISLAND || !far(p, v) {
+                is_island = false;
+                break;
             }
-            island.clear();
-            stack.clear();
-            state[start] = VISITED;
-            stack.push(start as u32);
-            let mut is_island = true;
-            'search: while let Some(p) = stack.pop() {
-                let p = p as usize;
-                let v = d[p];
-                island.push(p as u32);
-                if island.len() >= MAX_ISLAND || !far(p, v) {
-                    is_island = false;
-                    break;
+            let (px, py) = (p % w, p / w);
+            let neighbours = [
+                (px > 0).then(|| p - 1),
+                (px + 1 < w).then(|| p + 1),
+                (py > 0).then(|| p - w),
+                (py + 1 < h).then(|| p + w),
+            ];
+            for q in neighbours.into_iter().flatten() {
+                if d[q].is_nan() || (d[q] - v).abs() > MAX_STEP {
+                    continue;
                 }
-                let (px, py) = (p % w, p / w);
-                let neighbours = [
-                    (px > 0).then(|| p - 1),
-                    (px + 1 < w).then(|| p + 1),
-                    (py > 0).then(|| p - w),
-                    (py + 1 < h).then(|| p + w),
-                ];
-                for q in neighbours.into_iter().flatten() {
-                    if d[q].is_nan() || (d[q] - v).abs() > MAX_STEP {
-                        continue;
+                match state[q] {
+                    UNSEEN => {
+                        state[q] = VISITED;
+                        stack.push(q as u32);
                     }
-                    match state[q] {
-                        UNSEEN => {
-                            state[q] = VISITED;
-                            stack.push(q as u32);
-                        }
-                        NOT_ISLAND => {
-                            is_island = false;
-                            break 'search;
-                        }
-                        _ => {}
+                    NOT_ISLAND => {
+                        is_island = false;
+                        break 'search;
                     }
+                    _ => {}
                 }
             }
-            if is_island {
-                for &p in &island {
-                    d[p as usize] = invalid;
-                }
-                rejected += island.len();
-            } else {
-                for &p in island.iter().chain(&stack) {
-                    state[p as usize] = NOT_ISLAND;
-                }
+        }
+        if is_island {
+            for &p in &island {
+                d[p as usize] = invalid;
+            }
+            rejected += island.len();
+        } else {
+            for &p in island.iter().chain(&stack) {
+                state[p as usize] = NOT_ISLAND;
             }
         }
     }
@@ -147,15 +159,19 @@ fn surroundings(disparity: &DisparityMap, range: DisparityRange) -> Vec<f32> {
     // table[((ty * (tw + 1)) + tx) * bins + b]: pixels of bin b in tiles above-left of (tx, ty).
     let stride = (tw + 1) * bins;
     let mut table = vec![0u32; (th + 1) * stride];
-    for (y, row) in disparity.as_slice().chunks_exact(w).enumerate() {
-        let base = (y / TILE + 1) * stride;
-        for (x, &v) in row.iter().enumerate() {
-            if v.is_finite() {
-                let b = ((floor(v) - range.min as i64).clamp(0, bins as i64 - 1)) as usize;
-                table[base + (x / TILE + 1) * bins + b] += 1;
+    // Each row of tiles counts into its own row of the table.
+    table[stride..].par_chunks_mut(stride).zip(disparity.as_slice().par_chunks(TILE * w)).for_each(
+        |(counts, pixels)| {
+            for row in pixels.chunks_exact(w) {
+                for (x, &v) in row.iter().enumerate() {
+                    if v.is_finite() {
+                        let b = ((floor(v) - range.min as i64).clamp(0, bins as i64 - 1)) as usize;
+                        counts[(x / TILE + 1) * bins + b] += 1;
+                    }
+                }
             }
-        }
-    }
+        },
+    );
     for ty in 1..=th {
         for tx in 1..=tw {
             let (cur, up) = (ty * stride + tx * bins, (ty - 1) * stride + tx * bins);

@@ -1,6 +1,8 @@
 //! Post-processing after winner-takes-all: median, speckle removal, the status image and the
 //! optional dense fill.
 
+use rayon::prelude::*;
+
 use crate::fill::fill_invalid;
 use crate::filter::{median_3x3, weighted_median, weighted_median_at_edges};
 use crate::snap::snap_edges;
@@ -134,7 +136,7 @@ pub(crate) fn finish(mut disparity: DisparityMap, left: &GrayImage, params: &Sgm
 pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRange) {
     let width = disparity.width();
     let ends = RangeEnds::disparities(range);
-    for row in disparity.as_mut_slice().chunks_exact_mut(width.max(1)) {
+    disparity.as_mut_slice().par_chunks_exact_mut(width.max(1)).for_each(|row| {
         for (x, d) in row.iter_mut().enumerate() {
             if d.is_nan() {
                 continue;
@@ -145,7 +147,7 @@ pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRa
                 *d = tagged_nan(PixelStatus::RangeEnd);
             }
         }
-    }
+    });
 }
 
 /// Far islands ([`crate::far_islands`]), speckle removal, the status image (plain NaNs from here on), the fill, edge snapping and the

@@ -66,15 +66,13 @@ pub(crate) fn snap_edges(disparity: &DisparityMap, guide: &GrayImage, radius: us
         })
         .collect();
     let mut snapped = DisparityMap::new(w, h, 0.0);
-    let dst = snapped.as_mut_slice();
-    for (x0, out) in blocks {
-        let n = out.len() / h;
-        for y in 0..h {
-            for j in 0..n {
-                dst[y * w + x0 + j] = out[j * h + y];
+    snapped.as_mut_slice().par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x0, out) in &blocks {
+            for (j, d) in row[*x0..*x0 + out.len() / h].iter_mut().enumerate() {
+                *d = out[j * h + y];
             }
         }
-    }
+    });
     snapped
 }
 

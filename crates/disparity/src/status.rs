@@ -4,6 +4,8 @@
 //! the fused aggregation and the post-filters need no extra buffer); [`crate::sgm_detailed`]
 //! turns it into a [`PixelStatus`] image and leaves plain NaNs in the map.
 
+use rayon::prelude::*;
+
 use crate::{DisparityMap, Image};
 
 /// What happened to a pixel of the left disparity map (the values of [`crate::SgmOutput::status`]).
@@ -74,12 +76,17 @@ pub(crate) fn status_of(value: f32) -> PixelStatus {
 pub(crate) fn untag(disparity: &mut DisparityMap) -> Image<u8> {
     let (w, h) = disparity.size();
     let mut status = Image::new(w, h, 0u8);
-    for (s, d) in status.as_mut_slice().iter_mut().zip(disparity.as_mut_slice()) {
-        *s = status_of(*d) as u8;
-        if d.is_nan() {
-            *d = f32::NAN;
-        }
-    }
+    let rows = w.max(1) * 64;
+    status.as_mut_slice().par_chunks_mut(rows).zip(disparity.as_mut_slice().par_chunks_mut(rows)).for_each(
+        |(status, disparity)| {
+            for (s, d) in status.iter_mut().zip(disparity) {
+                *s = status_of(*d) as u8;
+                if d.is_nan() {
+                    *d = f32::NAN;
+                }
+            }
+        },
+    );
     status
 }
 
