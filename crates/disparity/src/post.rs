@@ -150,9 +150,9 @@ pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRa
     });
 }
 
-/// A winner farther than its row's first pixel whose right census window lies inside the image
-/// by more than this (px) is rejected by [`reject_border_cut`]: the same step within which
-/// neighbours belong to one surface for the speckle filter and the far islands.
+/// How far (px) behind the surface beside it a border winner must lie for [`reject_border_cut`]:
+/// the step within which neighbours belong to one surface for the speckle filter and the far
+/// islands.
 const BORDER_CUT_STEP: f32 = 1.0;
 
 /// For the dense output: rejects ([`PixelStatus::RangeEnd`]) the winners near the left border
@@ -160,9 +160,9 @@ const BORDER_CUT_STEP: f32 = 1.0;
 /// more than [`BORDER_CUT_STEP`] behind the row's first pixel whose window stays inside. Where a
 /// surface's true match leaves the right image, the pixels beside the border take a winner in
 /// the right image's first columns, at a disparity falling towards the border (a ramp of flying
-/// points behind the scene); the fill then continues the surface beside them. Measured on the
-/// default output it also rejects right pixels (bad2 +0.03–0.13 on six of the seven scenes), so
-/// the default keeps them (docs/robustness.md).
+/// points behind the scene); the fill then continues the surface beside them. On the default
+/// output the rule also turned right pixels into holes (bad2 up to +0.32 on the other six
+/// scenes, measured with steps of 0.5–1.5 px), so the default keeps them (docs/robustness.md).
 fn reject_border_cut(disparity: &mut DisparityMap, half_width: usize) {
     let width = disparity.width();
     disparity.as_mut_slice().par_chunks_exact_mut(width.max(1)).for_each(|row| {
