@@ -45,10 +45,7 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
     let reference = surroundings(disparity, range);
     let tw = w.div_ceil(TILE);
     let d = disparity.as_mut_slice();
-    let far = |p: usize, v: f32| {
-        let r = reference[(p / w / TILE) * tw + (p % w) / TILE];
-        r > 0.0 && v.is_finite() && 2.0 * v < r
-    };
+    let far = |p: usize, v: f32| behind(reference[(p / w / TILE) * tw + (p % w) / TILE], v);
 
     // Per pixel: not visited, visited by the current search, or known to lie in a region that is
     // not an island (too large, or not far everywhere). A search stops at the first sign that its
@@ -73,8 +70,7 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
             let row_tiles = (y / TILE) * tw;
             let reference = &reference;
             row.iter().enumerate().filter_map(move |(x, &v)| {
-                let r = reference[row_tiles + x / TILE];
-                (r > 0.0 && v.is_finite() && 2.0 * v < r).then_some((y * w + x) as u32)
+                behind(reference[row_tiles + x / TILE], v).then_some((y * w + x) as u32)
             })
         })
         .collect();
@@ -132,6 +128,13 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
         }
     }
     rejected
+}
+
+/// Whether disparity `v` lies more than twice as far as the surroundings' median disparity `r`
+/// (0: surroundings unknown).
+#[inline(always)]
+fn behind(r: f32, v: f32) -> bool {
+    r > 0.0 && v.is_finite() && 2.0 * v < r
 }
 
 /// `v.floor() as i64` for a finite `v` within `i64`, without the library call that `f32::floor`

@@ -78,17 +78,18 @@ pub(crate) fn status_of(value: f32) -> PixelStatus {
 pub(crate) fn untag(disparity: &mut DisparityMap) -> Image<u8> {
     let (w, h) = disparity.size();
     let mut status = Image::new(w, h, 0u8);
-    let rows = w.max(1) * 64;
-    status.as_mut_slice().par_chunks_mut(rows).zip(disparity.as_mut_slice().par_chunks_mut(rows)).for_each(
-        |(status, disparity)| {
+    status
+        .as_mut_slice()
+        .par_chunks_mut(w.max(1))
+        .zip(disparity.as_mut_slice().par_chunks_mut(w.max(1)))
+        .for_each(|(status, disparity)| {
             for (s, d) in status.iter_mut().zip(disparity) {
                 *s = status_of(*d) as u8;
                 if d.is_nan() {
                     *d = f32::NAN;
                 }
             }
-        },
-    );
+        });
     status
 }
 
