@@ -1,5 +1,5 @@
-//! Far islands: small regions of a disparity map that lie more than twice as far as the scene
-//! around them (the "flying points" that survive the left-right check; docs/robustness.md).
+//! Far islands: small regions of a disparity map that lie (mostly) more than twice as far as the
+//! scene around them (the "flying points" that survive the left-right check; docs/robustness.md).
 //!
 //! Near the left border (x below the largest disparity) the true match of a surface can leave the
 //! right image; the pixel then takes an interior winner at a small disparity, and where the right
@@ -19,8 +19,19 @@ use crate::{DisparityMap, DisparityRange};
 /// speckle size of the dense preset: a region this small is not trusted there either).
 const MAX_ISLAND: usize = crate::DENSE_SPECKLE_SIZE;
 
-/// Neighbours belong to one island when their disparities differ by at most this (as speckles).
+/// Neighbours belong to one island when their disparities differ by at most this (as speckles)...
 const MAX_STEP: f32 = 1.0;
+
+/// ... and by at most this share of the smaller one: one lies at most 25 % farther than the other.
+/// Far from the camera a step of 1 px is a jump in depth (from 2 px to 3 px, half the distance),
+/// and a constant step let a far island join the scene through a single pixel in between.
+const MAX_RELATIVE_STEP: f32 = 0.25;
+
+/// Whether neighbouring disparities `a` and `b` belong to one island.
+#[inline(always)]
+fn joined(a: f32, b: f32) -> bool {
+    (a - b).abs() <= MAX_STEP.min(MAX_RELATIVE_STEP * a.min(b))
+}
 
 /// The surroundings are summarised on a grid of square tiles this many pixels wide.
 const TILE: usize = 16;
@@ -30,8 +41,8 @@ const TILE: usize = 16;
 /// little but such islands is valid) also sees the scene beyond it.
 const MIN_REACH: usize = 4;
 
-/// Rejects every island (4-connected region of valid pixels whose neighbours differ by at most
-/// [`MAX_STEP`]) of fewer than [`MAX_ISLAND`] pixels all of whose disparities are below half the
+/// Rejects every island (4-connected region of valid pixels whose neighbours are [`joined`]) of
+/// fewer than [`MAX_ISLAND`] pixels at least half of whose disparities are below half the
 /// median valid disparity of their surroundings (the window of tiles within [`MIN_REACH`] tiles, and
 /// within the largest disparity, of each pixel's tile, which must hold at least [`MAX_ISLAND`] valid pixels): a depth more than twice
 /// that of the scene around it. Rejected pixels become `invalid` (a tagged NaN in the SGM
@@ -48,11 +59,11 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
     let far = |p: usize, v: f32| behind(reference[(p / w / TILE) * tw + (p % w) / TILE], v);
 
     // Per pixel: not visited, visited by the current search, or known to lie in a region that is
-    // not an island (too large, or not far everywhere). A search stops at the first sign that its
-    // region is no island and marks what it visited; a later search that touches such a pixel
-    // (within the step, so the same region) stops too. An island is always visited whole, by the
-    // first search that enters it, so every region gets the verdict a full visit would give, in
-    // O(W·H) time overall.
+    // not an island (too large, or not far enough). A search stops at the first sign that its
+    // region is too large (its size, or a pixel known to lie in a region that is not an island)
+    // and marks what it visited; a later search that touches such a pixel (joined, so the same
+    // region) stops too. An island is always visited whole, by the first search that enters it,
+    // so every region gets the verdict a full visit would give, in O(W·H) time overall.
     const UNSEEN: u8 = 0;
     const VISITED: u8 = 1;
     const NOT_ISLAND: u8 = 2;
@@ -84,14 +95,16 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
         state[start] = VISITED;
         stack.push(start as u32);
         let mut is_island = true;
+        let mut far_pixels = 0;
         'search: while let Some(p) = stack.pop() {
             let p = p as usize;
             let v = d[p];
             island.push(p as u32);
-            if island.len() >= MAX_ISLAND || !far(p, v) {
+            if island.len() >= MAX_ISLAND {
                 is_island = false;
                 break;
             }
+            far_pixels += usize::from(far(p, v));
             let (px, py) = (p % w, p / w);
             let neighbours = [
                 (px > 0).then(|| p - 1),
@@ -100,7 +113,7 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
                 (py + 1 < h).then(|| p + w),
             ];
             for q in neighbours.into_iter().flatten() {
-                if d[q].is_nan() || (d[q] - v).abs() > MAX_STEP {
+                if d[q].is_nan() || !joined(v, d[q]) {
                     continue;
                 }
                 match state[q] {
@@ -116,7 +129,7 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
                 }
             }
         }
-        if is_island {
+        if is_island && 2 * far_pixels >= island.len() {
             for &p in &island {
                 d[p as usize] = invalid;
             }
@@ -223,7 +236,7 @@ mod tests {
         DisparityRange { min: 0, max }
     }
 
-    /// The original search, which visits every region whole (`flood_region`): the reference of
+    /// The plain search, which visits every region whole: the reference of
     /// [`reject_far_islands`]'s stopping searches.
     fn reject_far_islands_reference(disparity: &mut DisparityMap, range: DisparityRange) -> usize {
         let (w, h) = disparity.size();
@@ -234,26 +247,39 @@ mod tests {
             let r = reference[(p / w / TILE) * tw + (p % w) / TILE];
             r > 0.0 && v.is_finite() && 2.0 * v < r
         };
-        let (mut seen, mut stack, mut island) = (vec![false; w * h], Vec::new(), Vec::new());
+        let mut seen = vec![false; w * h];
         let mut rejected = 0;
         for start in 0..w * h {
             if seen[start] || !far(start, d[start]) {
                 continue;
             }
-            island.clear();
-            let (mut size, mut all_far) = (0usize, true);
-            crate::speckle::flood_region(d, w, start, MAX_STEP, &mut seen, &mut stack, |p, v| {
-                size += 1;
-                all_far &= far(p, v);
-                if all_far && size < MAX_ISLAND {
-                    island.push(p);
+            // The whole region, breadth first.
+            let mut region = vec![start];
+            seen[start] = true;
+            let mut next = 0;
+            while next < region.len() {
+                let p = region[next];
+                next += 1;
+                let (px, py) = (p % w, p / w);
+                let neighbours = [
+                    (px > 0, p.wrapping_sub(1)),
+                    (px + 1 < w, p + 1),
+                    (py > 0, p.wrapping_sub(w)),
+                    (py + 1 < h, p + w),
+                ];
+                for (inside, q) in neighbours {
+                    if inside && !seen[q] && !d[q].is_nan() && joined(d[p], d[q]) {
+                        seen[q] = true;
+                        region.push(q);
+                    }
                 }
-            });
-            if all_far && size < MAX_ISLAND {
-                for &p in &island {
+            }
+            let far_pixels = region.iter().filter(|&&p| far(p, d[p])).count();
+            if region.len() < MAX_ISLAND && 2 * far_pixels >= region.len() {
+                for &p in &region {
                     d[p] = f32::NAN;
                 }
-                rejected += island.len();
+                rejected += region.len();
             }
         }
         rejected
@@ -339,6 +365,41 @@ mod tests {
             }
         }
         assert_eq!(reject_far_islands(&mut d, range(32), f32::NAN), 0);
+    }
+
+    #[test]
+    fn a_far_island_joined_to_the_scene_only_by_a_jump_in_depth_goes() {
+        // A scene at 5 px with a 6x6 island at 2 px whose edge pixel at 3 px touches one at 4 px,
+        // which touches the scene: 1 px steps, but each a jump of a third or more in depth, so
+        // the island is alone. The 3 and 4 px pixels are no nearer than half the scene: they stay.
+        let mut d = DisparityMap::new(64, 64, 5.0);
+        for y in 20..26 {
+            for x in 20..26 {
+                d.set(x, y, 2.0);
+            }
+        }
+        d.set(26, 22, 3.0);
+        d.set(27, 22, 4.0);
+        assert_eq!(reject_far_islands(&mut d, range(16), f32::NAN), 36);
+        assert!(d.get(22, 22).is_nan());
+        assert_eq!((d.get(26, 22), d.get(27, 22)), (3.0, 4.0));
+    }
+
+    #[test]
+    fn an_island_mostly_far_goes_whole_and_one_mostly_near_stays() {
+        // Scene at 4.6 px (behind: below 2.3 px). Island A: 12 pixels at 2.0 and 4 at 2.4
+        // (joined, a step of 20 % in depth): 12 of 16 behind, rejected whole. Island B: 4 at
+        // 2.0 and 12 at 2.4: a quarter behind, kept.
+        let mut d = DisparityMap::new(80, 64, 4.6);
+        for y in 10..14 {
+            for x in 10..14 {
+                d.set(x, y, if x == 13 { 2.4 } else { 2.0 });
+                d.set(x + 40, y, if x == 13 { 2.0 } else { 2.4 });
+            }
+        }
+        assert_eq!(reject_far_islands(&mut d, range(16), f32::NAN), 16);
+        assert!((10..14).all(|y| (10..14).all(|x| d.get(x, y).is_nan())));
+        assert!((10..14).all(|y| (50..54).all(|x| !d.get(x, y).is_nan())));
     }
 
     #[test]

@@ -150,28 +150,35 @@ pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRa
     });
 }
 
-/// How far (px) behind the surface beside it a border winner must lie for [`reject_border_cut`]:
-/// the step within which neighbours belong to one surface for the speckle filter and the far
-/// islands.
+/// How far (px) behind the surface beside it a border winner must lie for [`reject_border_cut`]
+/// on the dense output: the step within which neighbours belong to one surface for the speckle
+/// filter and the far islands.
 const BORDER_CUT_STEP: f32 = 1.0;
 
-/// For the dense output: rejects ([`PixelStatus::RangeEnd`]) the winners near the left border
-/// whose right census window leaves the right image (`x - d` below `half_width`) and that lie
-/// more than [`BORDER_CUT_STEP`] behind the row's first pixel whose window stays inside. Where a
-/// surface's true match leaves the right image, the pixels beside the border take a winner in
-/// the right image's first columns, at a disparity falling towards the border (a ramp of flying
-/// points behind the scene); the fill then continues the surface beside them. On the default
-/// output the rule also turned right pixels into holes (bad2 up to +0.32 on the other six
-/// scenes, measured with steps of 0.5–1.5 px), so the default keeps them (docs/robustness.md).
-fn reject_border_cut(disparity: &mut DisparityMap, half_width: usize) {
+/// On the other outputs, the share of the surface's disparity below which a border winner is
+/// rejected: a point more than a third farther than the surface beside it.
+const BORDER_CUT_RATIO: f32 = 0.75;
+
+/// Rejects ([`PixelStatus::RangeEnd`]) the winners near the left border whose right census
+/// window leaves the right image (`x - d` below `half_width`) and that lie behind the row's
+/// first pixel whose window stays inside: more than [`BORDER_CUT_STEP`] behind it where the
+/// output is `dense`, below [`BORDER_CUT_RATIO`] of its disparity otherwise. Where a surface's
+/// true match leaves the right image, the pixels beside the border take a winner in the right
+/// image's first columns, at a disparity falling towards the border (a ramp of flying points
+/// behind the scene); the fill then continues the surface beside them. Without the fill a
+/// rejected pixel is a hole, and the 1 px step turned right pixels into holes (bad2 up to +0.32
+/// on six of the seven Middlebury scenes), the ratio only the far end of the ramp
+/// (docs/robustness.md).
+fn reject_border_cut(disparity: &mut DisparityMap, half_width: usize, dense: bool) {
     let width = disparity.width();
     disparity.as_mut_slice().par_chunks_exact_mut(width.max(1)).for_each(|row| {
         let inside = row.iter().enumerate().find(|&(x, &d)| !d.is_nan() && x as f32 - d >= half_width as f32);
         let Some((first_inside, &reference)) = inside else {
             return;
         };
+        let limit = if dense { reference - BORDER_CUT_STEP } else { reference * BORDER_CUT_RATIO };
         for d in &mut row[..first_inside] {
-            if !d.is_nan() && *d < reference - BORDER_CUT_STEP {
+            if !d.is_nan() && *d < limit {
                 *d = tagged_nan(PixelStatus::RangeEnd);
             }
         }
@@ -181,9 +188,7 @@ fn reject_border_cut(disparity: &mut DisparityMap, half_width: usize) {
 /// Far islands ([`crate::far_islands`]), speckle removal, the status image (plain NaNs from here on), the fill, edge snapping and the
 /// weighted median.
 pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params: &SgmParams) -> SgmOutput {
-    if params.fill {
-        reject_border_cut(&mut disparity, params.census.width / 2);
-    }
+    reject_border_cut(&mut disparity, params.census.width / 2, params.fill);
     crate::far_islands::reject_far_islands_tagged(&mut disparity, params.range);
     remove_speckles(&mut disparity, params.speckle_size, params.speckle_max_diff);
     let status = untag(&mut disparity);
@@ -234,7 +239,7 @@ mod tests {
             _ => 5.0,
         });
         let before = d.clone();
-        reject_border_cut(&mut d, 4);
+        reject_border_cut(&mut d, 4, true);
         for (x, y) in (0..20).flat_map(|x| (0..4).map(move |y| (x, y))) {
             if y == 0 && x < 4 {
                 assert_eq!(status_of(d.get(x, y)), PixelStatus::RangeEnd, "({x}, {y})");
@@ -242,5 +247,21 @@ mod tests {
                 assert_eq!(d.get(x, y).to_bits(), before.get(x, y).to_bits(), "({x}, {y})");
             }
         }
+    }
+
+    #[test]
+    fn without_the_fill_only_the_far_end_of_a_border_ramp_goes() {
+        // Before a surface at 8 px (first window inside: x = 12): winners at 7.0 (within the step),
+        // 6.5 (more than 1 px behind: rejected for the fill, kept without it as it lies within
+        // a third of the surface's depth) and 5.0 (beyond: rejected on both outputs).
+        let row = [5.0, 6.5, 7.0];
+        let d = DisparityMap::from_fn(24, 1, |x, _| if x < 3 { row[x] } else { 8.0 });
+        let (mut dense, mut sparse) = (d.clone(), d);
+        reject_border_cut(&mut dense, 4, true);
+        reject_border_cut(&mut sparse, 4, false);
+        let status = |m: &DisparityMap| (0..3).map(|x| status_of(m.get(x, 0))).collect::<Vec<_>>();
+        assert_eq!(status(&dense), [PixelStatus::RangeEnd, PixelStatus::RangeEnd, PixelStatus::Matched]);
+        assert_eq!(status(&sparse), [PixelStatus::RangeEnd, PixelStatus::Matched, PixelStatus::Matched]);
+        assert_eq!(sparse.get(1, 0), 6.5);
     }
 }

@@ -28,12 +28,13 @@ pub enum PixelStatus {
     /// The best match lies at an end of the disparities searched for the pixel (the range's
     /// ends, or the last disparity that stays inside the right image): the true minimum may lie
     /// outside, so the match is not trusted (these are the "flying points" of a depth map).
-    /// With [`crate::SgmParams::fill`] also a winner near the left border whose right census
-    /// window leaves the image and that lies behind the surface beside it.
+    /// Also a winner near the left border whose right census window leaves the image and that
+    /// lies behind the surface beside it (more than 1 px with [`crate::SgmParams::fill`], more
+    /// than a third farther without).
     RangeEnd = 6,
     /// Part of a small island (fewer than [`crate::DENSE_SPECKLE_SIZE`] pixels of similar
-    /// disparity) whose disparities are all below half the median disparity around it: more
-    /// than twice as far as the scene there, which the matcher cannot tell from a wrong match
+    /// depth) at least half of whose disparities are below half the median disparity around it:
+    /// more than twice as far as the scene there, which the matcher cannot tell from a wrong match
     /// (mostly near the left border, where the true match has left the right image).
     FarIsland = 7,
 }
