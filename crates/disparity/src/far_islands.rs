@@ -9,6 +9,10 @@
 //! seen through a hole the size of the island; for islands smaller than
 //! [`crate::DENSE_SPECKLE_SIZE`] pixels the matcher cannot tell one from a wrong match, so they are
 //! rejected, whatever their position in the image.
+//!
+//! On a noisy pair such winners can fill whole stretches of the left band, so that they are the
+//! scene the band's own pixels see. A second pass therefore judges the band against the pixels
+//! outside it (whose search was complete) and takes larger islands there.
 
 use rayon::prelude::*;
 
@@ -41,22 +45,67 @@ const TILE: usize = 16;
 /// little but such islands is valid) also sees the scene beyond it.
 const MIN_REACH: usize = 4;
 
+/// In the left band (x below the largest disparity) islands are judged again against the pixels
+/// outside it, up to this share of the band's area (at least [`MAX_ISLAND`] pixels).
+const BAND_ISLAND_SHARE: usize = 40;
+
 /// Rejects every island (4-connected region of valid pixels whose neighbours are [`joined`]) of
 /// fewer than [`MAX_ISLAND`] pixels at least half of whose disparities are below half the
-/// median valid disparity of their surroundings (the window of tiles within [`MIN_REACH`] tiles, and
-/// within the largest disparity, of each pixel's tile, which must hold at least [`MAX_ISLAND`] valid pixels): a depth more than twice
-/// that of the scene around it. Rejected pixels become `invalid` (a tagged NaN in the SGM
-/// pipeline, [`PixelStatus::FarIsland`]). Returns how many were rejected. O(W·H + tiles·D).
+/// median valid disparity of their surroundings (the window of tiles within [`MIN_REACH`] tiles,
+/// and within the largest disparity, of each pixel's tile, which must hold at least
+/// [`MAX_ISLAND`] valid pixels): a depth more than twice that of the scene around it.
+///
+/// Then the same in the left band, where the true match of a surface can leave the right image
+/// and a noisy pair fills the band with wrong winners: there the surroundings count only the
+/// pixels outside the band (whose search was complete), and an island may hold up to
+/// 1/[`BAND_ISLAND_SHARE`] of the band's pixels; only its pixels inside the band count as
+/// behind.
+///
+/// Rejected pixels become `invalid` (a tagged NaN in the SGM pipeline,
+/// [`PixelStatus::FarIsland`]). Returns how many were rejected. O(W·H + tiles·D).
 pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityRange, invalid: f32) -> usize {
     let (w, h) = disparity.size();
-    let bins = range.count();
-    if w == 0 || h == 0 || bins == 0 {
+    if w == 0 || h == 0 || range.count() == 0 {
         return 0;
     }
-    let reference = surroundings(disparity, range);
-    let tw = w.div_ceil(TILE);
+    let reference = surroundings(disparity, range, 0);
+    let scene = Behind { reference: &reference, tiles_wide: w.div_ceil(TILE), columns: w };
+    let mut rejected = reject_islands(disparity, &scene, MAX_ISLAND, invalid);
+    let band = (range.max.max(0) as usize).min(w);
+    if band > 0 && band < w {
+        let reference = surroundings(disparity, range, band);
+        let outside = Behind { reference: &reference, tiles_wide: w.div_ceil(TILE), columns: band };
+        rejected +=
+            reject_islands(disparity, &outside, (band * h / BAND_ISLAND_SHARE).max(MAX_ISLAND), invalid);
+    }
+    rejected
+}
+
+/// Which pixels lie behind their surroundings: the median disparity per tile, and the columns
+/// (`0..columns`) that are judged at all.
+struct Behind<'r> {
+    reference: &'r [f32],
+    tiles_wide: usize,
+    columns: usize,
+}
+
+impl Behind<'_> {
+    #[inline(always)]
+    fn at(&self, x: usize, y: usize, v: f32) -> bool {
+        x < self.columns && behind(self.reference[(y / TILE) * self.tiles_wide + x / TILE], v)
+    }
+}
+
+/// Rejects every island of fewer than `max_island` pixels at least half of which lie `behind`.
+fn reject_islands(
+    disparity: &mut DisparityMap,
+    behind: &Behind<'_>,
+    max_island: usize,
+    invalid: f32,
+) -> usize {
+    let (w, h) = disparity.size();
     let d = disparity.as_mut_slice();
-    let far = |p: usize, v: f32| behind(reference[(p / w / TILE) * tw + (p % w) / TILE], v);
+    let far = |p: usize, v: f32| behind.at(p % w, p / w, v);
 
     // Per pixel: not visited, visited by the current search, or known to lie in a region that is
     // not an island (too large, or not far enough). A search stops at the first sign that its
@@ -71,18 +120,16 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
     let mut stack: Vec<u32> = Vec::new();
     let mut island: Vec<u32> = Vec::new();
     let mut rejected = 0;
-    // The pixels that could start an island, found in parallel (row by row, so that the test of
-    // every pixel divides by constants only), in the order the searches take them. Rejection only
-    // turns pixels invalid, which makes no new start.
+    // The pixels that could start an island, found in parallel (row by row), in the order the
+    // searches take them. Rejection only turns pixels invalid, which makes no new start.
     let starts: Vec<u32> = d
         .par_chunks_exact(w)
         .enumerate()
         .flat_map_iter(|(y, row)| {
-            let row_tiles = (y / TILE) * tw;
-            let reference = &reference;
-            row.iter().enumerate().filter_map(move |(x, &v)| {
-                behind(reference[row_tiles + x / TILE], v).then_some((y * w + x) as u32)
-            })
+            row[..behind.columns]
+                .iter()
+                .enumerate()
+                .filter_map(move |(x, &v)| behind.at(x, y, v).then_some((y * w + x) as u32))
         })
         .collect();
     for start in starts {
@@ -100,7 +147,7 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
             let p = p as usize;
             let v = d[p];
             island.push(p as u32);
-            if island.len() >= MAX_ISLAND {
+            if island.len() >= max_island {
                 is_island = false;
                 break;
             }
@@ -164,11 +211,12 @@ pub(crate) fn reject_far_islands_tagged(disparity: &mut DisparityMap, range: Dis
     reject_far_islands(disparity, range, tagged_nan(PixelStatus::FarIsland))
 }
 
-/// Per tile, the median valid disparity in the window of tiles within the reach ([`MIN_REACH`], or the largest disparity) of it (0 when
-/// the window holds fewer than [`MAX_ISLAND`] valid pixels): per-tile histograms of the integer
+/// Per tile, the median valid disparity of the pixels at `from_column` or right of it in the
+/// window of tiles within the reach ([`MIN_REACH`], or the largest disparity) of it (0 when the
+/// window holds fewer than [`MAX_ISLAND`] such pixels): per-tile histograms of the integer
 /// disparity, summed over the window through a summed-area table, the median interpolated within
 /// its bin.
-fn surroundings(disparity: &DisparityMap, range: DisparityRange) -> Vec<f32> {
+fn surroundings(disparity: &DisparityMap, range: DisparityRange, from_column: usize) -> Vec<f32> {
     let (w, h) = disparity.size();
     let bins = range.count();
     let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
@@ -179,7 +227,7 @@ fn surroundings(disparity: &DisparityMap, range: DisparityRange) -> Vec<f32> {
     table[stride..].par_chunks_mut(stride).zip(disparity.as_slice().par_chunks(TILE * w)).for_each(
         |(counts, pixels)| {
             for row in pixels.chunks_exact(w) {
-                for (x, &v) in row.iter().enumerate() {
+                for (x, &v) in row.iter().enumerate().skip(from_column) {
                     if v.is_finite() {
                         let b = ((floor(v) - range.min as i64).clamp(0, bins as i64 - 1)) as usize;
                         counts[(x / TILE + 1) * bins + b] += 1;
@@ -240,12 +288,31 @@ mod tests {
     /// [`reject_far_islands`]'s stopping searches.
     fn reject_far_islands_reference(disparity: &mut DisparityMap, range: DisparityRange) -> usize {
         let (w, h) = disparity.size();
-        let reference = surroundings(disparity, range);
+        let band = (range.max.max(0) as usize).min(w);
+        let mut rejected = whole_visits(disparity, range, 0, w, MAX_ISLAND);
+        if band > 0 && band < w {
+            let max_island = (band * h / BAND_ISLAND_SHARE).max(MAX_ISLAND);
+            rejected += whole_visits(disparity, range, band, band, max_island);
+        }
+        rejected
+    }
+
+    /// One pass of the reference: judged against the pixels from `from_column` on, pixels in
+    /// `0..columns` can lie behind.
+    fn whole_visits(
+        disparity: &mut DisparityMap,
+        range: DisparityRange,
+        from_column: usize,
+        columns: usize,
+        max_island: usize,
+    ) -> usize {
+        let (w, h) = disparity.size();
+        let reference = surroundings(disparity, range, from_column);
         let tw = w.div_ceil(TILE);
         let d = disparity.as_mut_slice();
         let far = |p: usize, v: f32| {
             let r = reference[(p / w / TILE) * tw + (p % w) / TILE];
-            r > 0.0 && v.is_finite() && 2.0 * v < r
+            p % w < columns && r > 0.0 && v.is_finite() && 2.0 * v < r
         };
         let mut seen = vec![false; w * h];
         let mut rejected = 0;
@@ -275,7 +342,7 @@ mod tests {
                 }
             }
             let far_pixels = region.iter().filter(|&&p| far(p, d[p])).count();
-            if region.len() < MAX_ISLAND && 2 * far_pixels >= region.len() {
+            if region.len() < max_island && 2 * far_pixels >= region.len() {
                 for &p in &region {
                     d[p] = f32::NAN;
                 }
@@ -283,6 +350,29 @@ mod tests {
             }
         }
         rejected
+    }
+
+    #[test]
+    fn a_large_far_region_in_the_left_band_goes_when_the_scene_beyond_is_near() {
+        // 160x400, disparities below 64: band islands up to 64 * 400 / 40 = 640 pixels. A 30x20
+        // region at 3 px (600 pixels, too large for the first pass) inside the band goes when the
+        // scene is at 40 px, stays when the scene is at 5 px (not twice as far), and a 30x30 one
+        // (900 pixels) stays.
+        let region = |scene: f32, rows: usize| {
+            let mut d = DisparityMap::new(160, 400, scene);
+            for y in 100..100 + rows {
+                for x in 10..40 {
+                    d.set(x, y, 3.0);
+                }
+            }
+            d
+        };
+        let mut near = region(40.0, 20);
+        assert_eq!(reject_far_islands(&mut near, range(64), f32::NAN), 600);
+        let mut far_scene = region(5.0, 20);
+        assert_eq!(reject_far_islands(&mut far_scene, range(64), f32::NAN), 0);
+        let mut large = region(40.0, 30);
+        assert_eq!(reject_far_islands(&mut large, range(64), f32::NAN), 0);
     }
 
     proptest::proptest! {
