@@ -361,6 +361,12 @@ pub struct MatchArgs {
     #[arg(long, value_parser = named::<Search>(), help_heading = "Matching")]
     pub search: Option<Search>,
 
+    /// SGM: match the pair reduced N times on each side (box filter), then bring the disparities
+    /// back to full size: about N³ times less work, for disparities N times coarser and no detail
+    /// below N pixels (for camera resolutions; docs/performance.md) [default: 1, full resolution]
+    #[arg(long, value_name = "N", help_heading = "Matching")]
+    pub downscale: Option<usize>,
+
     /// SGM: penalty for a one-pixel disparity change along a path, in census bits.
     #[arg(long, value_name = "N", help_heading = "Matching")]
     pub p1: Option<u16>,

@@ -596,6 +596,7 @@ fn matcher(args: &MatchArgs) -> Result<Matcher, UsageError> {
         single_pass: args.single_pass,
         paths: args.paths,
         search: args.search,
+        downscale: args.downscale,
         p1: args.p1,
         p2: args.p2,
         edge_snap: args.edge_snap,

@@ -206,8 +206,11 @@ pub enum MatcherReport {
         search: &'static str,
         /// Half-resolution levels matched below the full one (0 for the full search).
         search_levels: u32,
-        /// The mean number of disparities a pixel searched (`num_disparities` for the full search).
+        /// The mean number of disparities a pixel searched (`num_disparities` for the full search),
+        /// on the matched pair.
         mean_disparities_searched: f32,
+        /// The factor the pair was reduced by before matching (`--downscale`; 1: full resolution).
+        downscale: usize,
     },
     Bm {
         min_disparity: i32,
@@ -360,6 +363,7 @@ impl MatcherReport {
                 search: if search.is_some_and(|s| s.hierarchical) { "hierarchical" } else { "full" },
                 search_levels: search.map_or(0, |s| s.levels),
                 mean_disparities_searched: search.map_or(p.range.count() as f32, |s| s.mean_range),
+                downscale: p.downscale,
             },
             Matcher::Bm(p) => MatcherReport::Bm {
                 min_disparity: p.range.min,
@@ -508,6 +512,14 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
             (false, _) => penalties,
         };
         writeln!(out, "cost          {cost}, {penalties}")?;
+    }
+    if let MatcherReport::Sgm { downscale, .. } = &stats.matcher {
+        if *downscale > 1 {
+            writeln!(
+                out,
+                "downscale     matched at 1/{downscale} of the size, disparities {downscale} times coarser"
+            )?;
+        }
     }
     if let MatcherReport::Sgm {
         search: "hierarchical",

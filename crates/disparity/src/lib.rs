@@ -223,6 +223,13 @@ pub struct SgmParams {
     pub single_pass: bool,
     /// How the range is searched ([`Search::Auto`]: coarse to fine for large ranges).
     pub search: Search,
+    /// Match the pair reduced by this factor (each side; box-filtered, the range divided
+    /// alike) and bring the result back to full size, each pixel of the reduced map covering
+    /// `downscale × downscale` pixels, its disparity times `downscale`. 1 matches at full
+    /// resolution. Less work by about `downscale³`, for disparities `downscale` times coarser
+    /// and details below `downscale` pixels lost: for camera resolutions where speed matters
+    /// more (docs/performance.md). At most [`MAX_DOWNSCALE`].
+    pub downscale: usize,
     /// Upper bound (bytes) on the working memory the matcher plans (see
     /// [`planned_memory_bytes`]): the two-pass aggregation then runs on horizontal strips short
     /// enough to fit. `None` uses the default plan (strips sized for speed, see
@@ -278,6 +285,7 @@ impl Default for SgmParams {
             median: true,
             single_pass: false,
             search: Search::Auto,
+            downscale: 1,
             max_memory: None,
             speckle_size: 0,
             speckle_max_diff: 1.0,
@@ -346,6 +354,12 @@ impl SgmParams {
                 });
             }
         }
+        if !(1..=MAX_DOWNSCALE).contains(&self.downscale) {
+            return Err(Error::InvalidParameter {
+                name: "downscale",
+                message: format!("{} must be between 1 and {MAX_DOWNSCALE}", self.downscale),
+            });
+        }
         let nd = self.range.count();
         if nd >= usize::from(u16::MAX) {
             return Err(Error::InvalidParameter {
@@ -394,6 +408,9 @@ impl SgmParams {
         }
     }
 }
+
+/// The largest [`SgmParams::downscale`].
+pub const MAX_DOWNSCALE: usize = 8;
 
 /// The speckle size [`SgmParams::with_fill`] uses: chosen by measurement of the filled maps.
 pub const DENSE_SPECKLE_SIZE: usize = 400;

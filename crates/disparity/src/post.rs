@@ -37,8 +37,11 @@ pub struct SearchReport {
     /// Half-resolution levels matched below the full resolution (0 for the full search).
     pub levels: u32,
     /// The mean number of disparities a full-resolution pixel searched (the range's size for the
-    /// full search).
+    /// full search), counted on the matched pair (reduced by `downscale`).
     pub mean_range: f32,
+    /// The factor the pair was reduced by before matching ([`crate::SgmParams::downscale`]; 1:
+    /// matched at full resolution).
+    pub downscale: usize,
 }
 
 /// What [`crate::sgm_detailed`] measured of the pair before matching (a census-only match at a

@@ -14,6 +14,7 @@ use crate::wta::Selection;
 use crate::{
     check_pair, DisparityMap, DisparityRange, Error, GrayImage, Image, MatchingCost, Search, SgmParams,
 };
+use rayon::prelude::*;
 
 /// Semi-Global Matching of a rectified pair (Hirschmüller 2008) with census or AD-census costs
 /// ([`SgmParams::matching_cost`]).
@@ -29,6 +30,9 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
 pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<SgmOutput, Error> {
     check_pair(left, right)?;
     params.validate()?;
+    if params.downscale > 1 {
+        return match_downscaled(left, right, params);
+    }
     let (width, height) = left.size();
     if width < params.census.width || height < params.census.height {
         return Err(Error::ImageTooSmall {
@@ -72,6 +76,78 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     output.adaptation = adaptation;
     output.search = search;
     Ok(output)
+}
+
+/// [`SgmParams::downscale`]: the pair reduced by the factor `f` (box filter, as the coarse levels),
+/// matched with the range divided by `f` (rounded outwards) and every other parameter as given,
+/// then brought back: each reduced pixel covers `f × f` pixels (the last row and column repeat
+/// where the size is not a multiple of `f`) with its disparity, status and confidence, the
+/// disparity times `f`. A disparity that lands outside the range asked for is rejected
+/// ([`crate::PixelStatus::RangeEnd`]).
+fn match_downscaled(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<SgmOutput, Error> {
+    let f = params.downscale;
+    let (width, height) = left.size();
+    let (small_width, small_height) = (width / f, height / f);
+    if small_width < params.census.width || small_height < params.census.height {
+        return Err(Error::InvalidParameter {
+            name: "downscale",
+            message: format!(
+                "{width}x{height} reduced by {f} is {small_width}x{small_height}, smaller than the {}x{} census window",
+                params.census.width, params.census.height
+            ),
+        });
+    }
+    let range = params.range;
+    let fi = f as i32;
+    crate::check_range(&range, width)?;
+    let small_min = range.min.div_euclid(fi);
+    // At most as many disparities as the reduced pair is wide (rounding outwards can add one).
+    let small_max = (range.max + fi - 1).div_euclid(fi).min(small_min + small_width as i32);
+    let small_range = DisparityRange { min: small_min, max: small_max.max(small_min + 1) };
+    let small_params = SgmParams { range: small_range, downscale: 1, ..params.clone() };
+    let (small_left, small_right) =
+        rayon::join(|| crate::radiometric::downsample(left, f), || crate::radiometric::downsample(right, f));
+    let small = sgm_detailed(&small_left, &small_right, &small_params)?;
+    drop((small_left, small_right));
+
+    let scale = f as f32;
+    let (lo, hi) = (range.min as f32, (range.max - 1) as f32);
+    let source =
+        |x: usize, y: usize| (x / f).min(small_width - 1) + (y / f).min(small_height - 1) * small_width;
+    let mut disparity = DisparityMap::new(width, height, f32::NAN);
+    let mut status = Image::new(width, height, 0u8);
+    let range_end = crate::PixelStatus::RangeEnd as u8;
+    disparity
+        .as_mut_slice()
+        .par_chunks_exact_mut(width)
+        .zip(status.as_mut_slice().par_chunks_exact_mut(width))
+        .enumerate()
+        .for_each(|(y, (row, status_row))| {
+            for (x, (d, s)) in row.iter_mut().zip(status_row.iter_mut()).enumerate() {
+                let at = source(x, y);
+                let v = small.disparity.as_slice()[at] * scale;
+                *s = small.status.as_slice()[at];
+                if v.is_nan() || (lo..=hi).contains(&v) {
+                    *d = v;
+                } else {
+                    *s = range_end;
+                }
+            }
+        });
+    let confidence = small.confidence.as_ref().map(|c| {
+        let mut out = Image::new(width, height, 0.0f32);
+        for (i, v) in out.as_mut_slice().iter_mut().enumerate() {
+            *v = c.as_slice()[source(i % width, i / width)];
+        }
+        out
+    });
+    Ok(SgmOutput {
+        disparity,
+        status,
+        confidence,
+        adaptation: small.adaptation,
+        search: SearchReport { downscale: f, ..small.search },
+    })
 }
 
 /// What [`SgmParams::adapt_to_pair`] does before aggregation, shared by the matcher and its scalar
@@ -337,7 +413,13 @@ fn match_census(
         }
     }
     let disparity = aggregate_census(left, Some(right), census_left, census_right, params);
-    (disparity, SearchReport { hierarchical: false, levels: 0, mean_range: params.range.count() as f32 })
+    let report = SearchReport {
+        hierarchical: false,
+        levels: 0,
+        mean_range: params.range.count() as f32,
+        downscale: 1,
+    };
+    (disparity, report)
 }
 
 /// The coarse-to-fine search ([`crate::hierarchical`]): the half-resolution pair matched over
@@ -393,6 +475,7 @@ fn match_coarse_to_fine(
         hierarchical: true,
         levels: coarse.search.levels + 1,
         mean_range: bands.mean_searched(range),
+        downscale: 1,
     };
     Some((disparity, report))
 }
@@ -481,6 +564,48 @@ mod tests {
         // A hash: every pixel differs from its neighbours, so every shift is unambiguous.
         let h = (x.wrapping_mul(0x9E37_79B9) ^ y.wrapping_mul(0x85EB_CA6B)).wrapping_mul(0xC2B2_AE35);
         ((h >> 16) & 0xffff) as u16
+    }
+
+    #[test]
+    fn downscale_matches_the_reduced_pair_and_replicates_its_pixels() {
+        // A 101x61 pair shifted by 10 px (odd sizes: the last column and row repeat), matched
+        // reduced by 2 against the explicit composition: box-reduce, match over 0..12 (24 / 2),
+        // replicate each pixel 2x2 with its disparity doubled. And the shift comes back.
+        let left = GrayImage::from_fn(101, 61, |x, y| texture(x as i64 / 2, y as i64 / 2));
+        let right = GrayImage::from_fn(101, 61, |x, y| texture((x as i64 + 10) / 2, y as i64 / 2));
+        let params = SgmParams { range: DisparityRange::new(0, 24).unwrap(), ..SgmParams::default() };
+        let reduced = sgm_detailed(&left, &right, &SgmParams { downscale: 2, ..params.clone() }).unwrap();
+        let small = sgm_detailed(
+            &crate::radiometric::downsample(&left, 2),
+            &crate::radiometric::downsample(&right, 2),
+            &SgmParams { range: DisparityRange::new(0, 12).unwrap(), ..params },
+        )
+        .unwrap();
+        assert_eq!(reduced.disparity.size(), (101, 61));
+        assert_eq!(reduced.search.downscale, 2);
+        let mut right_px = 0;
+        for y in 0..61 {
+            for x in 0..101 {
+                let (sx, sy) = ((x / 2).min(49), (y / 2).min(29));
+                let expected = small.disparity.get(sx, sy) * 2.0;
+                let got = reduced.disparity.get(x, y);
+                assert!(
+                    got.to_bits() == expected.to_bits() || (got.is_nan() && expected.is_nan()),
+                    "({x},{y})"
+                );
+                assert_eq!(reduced.status.get(x, y), small.status.get(sx, sy));
+                right_px += usize::from((got - 10.0).abs() <= 1.0);
+            }
+        }
+        assert!(right_px > 101 * 61 * 3 / 4, "{right_px}");
+        // Too small once reduced: an error that names the option.
+        let tiny = GrayImage::from_fn(20, 20, |x, y| texture(x as i64, y as i64));
+        let err = sgm_detailed(
+            &tiny,
+            &tiny,
+            &SgmParams { downscale: 4, range: DisparityRange::new(0, 4).unwrap(), ..SgmParams::default() },
+        );
+        assert!(err.unwrap_err().to_string().contains("downscale"));
     }
 
     #[test]

@@ -21,6 +21,8 @@ pub struct MatcherOptions {
     pub paths: Option<PathCount>,
     /// SGM: the full or the coarse-to-fine search ([`Search`]).
     pub search: Option<Search>,
+    /// SGM: match the pair reduced by this factor ([`SgmParams::downscale`]).
+    pub downscale: Option<usize>,
     pub p1: Option<u16>,
     pub p2: Option<u16>,
     pub edge_snap: Option<usize>,
@@ -61,6 +63,7 @@ impl Default for MatcherOptions {
             single_pass: false,
             paths: None,
             search: None,
+            downscale: None,
             p1: None,
             p2: None,
             edge_snap: None,
@@ -106,6 +109,7 @@ impl MatcherOptions {
                 Ok(Matcher::Sgm(SgmParams {
                     paths: self.paths.unwrap_or(defaults.paths),
                     search: self.search.unwrap_or(defaults.search),
+                    downscale: self.downscale(defaults.downscale)?,
                     p1: self.p1.unwrap_or(defaults.p1),
                     p2: self.p2.unwrap_or(defaults.p2),
                     uniqueness_ratio: self.uniqueness.unwrap_or(defaults.uniqueness_ratio),
@@ -119,6 +123,7 @@ impl MatcherOptions {
                 let sgm = MatcherKind::Sgm;
                 reject(self.paths.is_some(), "paths", sgm)?;
                 reject(self.search.is_some(), "search", sgm)?;
+                reject(self.downscale.is_some(), "downscale", sgm)?;
                 reject(self.p1.is_some(), "p1", sgm)?;
                 reject(self.p2.is_some(), "p2", sgm)?;
                 reject(self.preset != Preset::Balanced, "preset", sgm)?;
@@ -145,6 +150,17 @@ impl MatcherOptions {
                     ..defaults
                 }))
             }
+        }
+    }
+
+    fn downscale(&self, default: usize) -> Result<usize, OptionError> {
+        match self.downscale {
+            Some(f) if !(1..=stereo_disparity::MAX_DOWNSCALE).contains(&f) => Err(OptionError::Invalid {
+                option: "downscale",
+                message: format!("must be between 1 and {}, got {f}", stereo_disparity::MAX_DOWNSCALE),
+            }),
+            Some(f) => Ok(f),
+            None => Ok(default),
         }
     }
 

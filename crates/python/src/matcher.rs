@@ -44,6 +44,8 @@ use crate::input::{Input, View};
 /// - ``paths`` [None: 8, 4 with preset "fast"]: SGM aggregation paths, 4 or 8.
 /// - ``search`` [None: "auto"]: "full", "hierarchical" (coarse to fine) or "auto" (hierarchical
 ///   from 256 disparities, or 128 from 2 megapixels; else full).
+/// - ``downscale`` [None: 1]: SGM: match the pair reduced this many times on each side, then
+///   bring the disparities back to full size (about downscale³ less work, coarser disparities).
 /// - ``p1`` [None: 20], ``p2`` [None: 80]: SGM penalties, in census bits.
 /// - ``uniqueness`` [None: 0 (sgm), 10 (bm)]: uniqueness margin, percent; 0 disables it.
 /// - ``lr_max_diff`` [None: 3 (sgm; 1 with fill), 1 (bm)]: left-right check tolerance, px.
@@ -112,7 +114,8 @@ impl Matcher {
     #[pyo3(signature = (
         *, min_disparity = 0, max_disparity = None, matcher = "sgm", preset = "balanced",
         fill = false, speckle_size = None, edge_snap = None, confidence = false,
-        min_confidence = None, single_pass = false, paths = None, search = None, p1 = None, p2 = None,
+        min_confidence = None, single_pass = false, paths = None, search = None, downscale = None,
+        p1 = None, p2 = None,
         uniqueness = None, lr_max_diff = None, lr_check = true, subpixel = None,
         block_size = None, bm_cost = None, align = true, max_memory = None, max_pixels = None,
         threads = None
@@ -131,6 +134,7 @@ impl Matcher {
         single_pass: bool,
         paths: Option<i64>,
         search: Option<&str>,
+        downscale: Option<i64>,
         p1: Option<i64>,
         p2: Option<i64>,
         uniqueness: Option<i64>,
@@ -189,6 +193,9 @@ impl Matcher {
             single_pass,
             paths,
             search: search.map(|s| named::<Search>("search", s)).transpose()?,
+            downscale: downscale
+                .map(|f| int_in("downscale", f, 1, stereo_disparity::MAX_DOWNSCALE as i64))
+                .transpose()?,
             p1: p1.map(|p| int_in("p1", p, 0, u16::MAX as i64)).transpose()?,
             p2: p2.map(|p| int_in("p2", p, 0, u16::MAX as i64)).transpose()?,
             edge_snap: edge_snap.map(|e| int_in("edge_snap", e, 0, i64::MAX)).transpose()?,
@@ -310,6 +317,7 @@ impl Matcher {
                 d.set_item("search", if r.hierarchical { "hierarchical" } else { "full" })?;
                 d.set_item("levels", r.levels)?;
                 d.set_item("mean_disparities_searched", r.mean_range)?;
+                d.set_item("downscale", r.downscale)?;
                 Some(d.into_any().unbind())
             }
             None => None,
@@ -497,7 +505,8 @@ pub fn to_numpy<T: numpy::Element + Copy>(py: Python<'_>, image: Image<T>) -> Bo
 ///   ``negative_disparity_share``, ``verdict``, ``compensated``.
 /// - ``adaptation``: dict of what SGM measured of the pair (None for BM).
 /// - ``search``: dict ``search`` ("full" or "hierarchical", the coarse-to-fine search), ``levels``
-///   (half-resolution levels below the full one) and ``mean_disparities_searched`` per pixel
+///   (half-resolution levels below the full one), ``mean_disparities_searched`` per pixel (of the
+///   matched pair) and ``downscale`` (the factor the pair was reduced by; 1: full resolution)
 ///   (None for BM).
 /// - ``range``: (min, max) disparities searched, ``min <= d < max``.
 /// - ``copied``: (left, right): whether an input array had to be copied to be read.

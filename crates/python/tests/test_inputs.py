@@ -133,7 +133,7 @@ def test_a_matcher_is_shared_between_threads(pair, matcher):
 def test_help_lists_every_option_with_its_default():
     text = sd.Matcher.__doc__
     for option in ["min_disparity", "max_disparity", "matcher", "preset", "fill", "speckle_size", "edge_snap",
-                   "confidence", "min_confidence", "single_pass", "paths", "search", "p1", "p2", "uniqueness",
+                   "confidence", "min_confidence", "single_pass", "paths", "search", "downscale", "p1", "p2", "uniqueness",
                    "lr_max_diff", "lr_check", "subpixel", "block_size", "bm_cost", "align", "max_memory",
                    "max_pixels", "threads"]:
         assert f"``{option}`` [" in text, option
