@@ -7,7 +7,8 @@ use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};
 use stereo_degrade::Degradation;
 use stereo_pipeline::{
-    parse_named, BmCost, BmParams, MatcherKind, Named, PathCount, Preset, Search, SgmParams, Subpixel,
+    parse_named, BmCost, BmParams, Downscale, MatcherKind, Named, PathCount, Preset, Search, SgmParams,
+    Subpixel,
 };
 
 const AFTER_HELP: &str = "\
@@ -363,9 +364,11 @@ pub struct MatchArgs {
 
     /// SGM: match the pair reduced N times on each side (box filter), then bring the disparities
     /// back to full size: about N³ times less work, for disparities N times coarser and no detail
-    /// below N pixels (for camera resolutions; docs/performance.md) [default: 1, full resolution]
-    #[arg(long, value_name = "N", help_heading = "Matching")]
-    pub downscale: Option<usize>,
+    /// below N pixels. auto (default): halve, repeatedly, while both views hold no detail finer than
+    /// 2 px (enlarged images, soft optics) and at least 100 000 pixels remain; 1: full resolution
+    /// (docs/performance.md)
+    #[arg(long, value_name = "auto|N", help_heading = "Matching")]
+    pub downscale: Option<Downscale>,
 
     /// SGM: penalty for a one-pixel disparity change along a path, in census bits.
     #[arg(long, value_name = "N", help_heading = "Matching")]

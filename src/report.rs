@@ -363,7 +363,7 @@ impl MatcherReport {
                 search: if search.is_some_and(|s| s.hierarchical) { "hierarchical" } else { "full" },
                 search_levels: search.map_or(0, |s| s.levels),
                 mean_disparities_searched: search.map_or(p.range.count() as f32, |s| s.mean_range),
-                downscale: p.downscale,
+                downscale: search.map_or(1, |s| s.downscale),
             },
             Matcher::Bm(p) => MatcherReport::Bm {
                 min_disparity: p.range.min,

@@ -12,7 +12,8 @@ use crate::radiometric::{blockiness, CoarseMatch};
 use crate::tone::{ToneCorrection, ToneSample, Vignetting};
 use crate::wta::Selection;
 use crate::{
-    check_pair, DisparityMap, DisparityRange, Error, GrayImage, Image, MatchingCost, Search, SgmParams,
+    check_pair, DisparityMap, DisparityRange, Downscale, Error, GrayImage, Image, MatchingCost, Search,
+    SgmParams, AUTO_DOWNSCALE_MIN_PIXELS, AUTO_DOWNSCALE_SMOOTHNESS,
 };
 use rayon::prelude::*;
 
@@ -30,8 +31,8 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
 pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<SgmOutput, Error> {
     check_pair(left, right)?;
     params.validate()?;
-    if params.downscale > 1 {
-        return match_downscaled(left, right, params);
+    if let Some((f, small_left, small_right)) = reduction(left, right, params) {
+        return match_downscaled(left, right, small_left, small_right, f, params);
     }
     let (width, height) = left.size();
     if width < params.census.width || height < params.census.height {
@@ -78,16 +79,85 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     Ok(output)
 }
 
-/// [`SgmParams::downscale`]: the pair reduced by the factor `f` (box filter, as the coarse levels),
-/// matched with the range divided by `f` (rounded outwards) and every other parameter as given,
-/// then brought back: each reduced pixel covers `f × f` pixels (the last row and column repeat
-/// where the size is not a multiple of `f`) with its disparity, status and confidence, the
-/// disparity times `f`. A disparity that lands outside the range asked for is rejected
-/// ([`crate::PixelStatus::RangeEnd`]).
-fn match_downscaled(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<SgmOutput, Error> {
-    let f = params.downscale;
+/// The reduction [`SgmParams::downscale`] asks for on this pair, if any: the factor and both
+/// views reduced by it.
+fn reduction(
+    left: &GrayImage,
+    right: &GrayImage,
+    params: &SgmParams,
+) -> Option<(usize, GrayImage, GrayImage)> {
     let (width, height) = left.size();
-    let (small_width, small_height) = (width / f, height / f);
+    let reduce = |f: usize| {
+        rayon::join(|| crate::radiometric::downsample(left, f), || crate::radiometric::downsample(right, f))
+    };
+    match params.downscale {
+        Downscale::By(f) if f > 1 => {
+            let (l, r) = reduce(f);
+            Some((f, l, r))
+        }
+        Downscale::By(_) => None,
+        Downscale::Auto => {
+            let (half_width, half_height) = (width / 2, height / 2);
+            if half_width * half_height < AUTO_DOWNSCALE_MIN_PIXELS
+                || half_width < params.census.width
+                || half_height < params.census.height
+                || params.range.count() < 2
+            {
+                return None;
+            }
+            let (l, r) = reduce(2);
+            let smooth = |full: &GrayImage, half: &GrayImage| {
+                gradient_energy(half) >= AUTO_DOWNSCALE_SMOOTHNESS * gradient_energy(full)
+            };
+            let (a, b) = rayon::join(|| smooth(left, &l), || smooth(right, &r));
+            (a && b).then_some((2, l, r))
+        }
+    }
+}
+
+/// The mean squared difference between horizontal and vertical neighbours (summed per row, then
+/// over the rows in order: the same value on any number of threads).
+fn gradient_energy(image: &GrayImage) -> f64 {
+    let (w, h) = image.size();
+    if w < 2 || h < 2 {
+        return 0.0;
+    }
+    let rows: Vec<f64> = (0..h - 1)
+        .into_par_iter()
+        .map(|y| {
+            let (row, below) = (image.row(y), image.row(y + 1));
+            let mut sum = 0u64;
+            for x in 0..w {
+                let dy = i64::from(below[x]) - i64::from(row[x]);
+                sum += (dy * dy) as u64;
+                if x + 1 < w {
+                    let dx = i64::from(row[x + 1]) - i64::from(row[x]);
+                    sum += (dx * dx) as u64;
+                }
+            }
+            sum as f64
+        })
+        .collect();
+    rows.iter().sum::<f64>() / ((w * (h - 1) + (w - 1) * (h - 1)) as f64)
+}
+
+/// [`SgmParams::downscale`]: the pair reduced by the factor `f` (box filter, as the coarse
+/// levels) matched with the range divided by `f` (rounded outwards) and every other parameter as
+/// given ([`Downscale::Auto`] may halve it again), then brought back: each reduced pixel covers
+/// `f × f` pixels (the last row and column repeat where the size is not a multiple of `f`) with
+/// its disparity, status and confidence, the disparity times `f`. A disparity that lands outside
+/// the range asked for is rejected ([`crate::PixelStatus::RangeEnd`]).
+fn match_downscaled(
+    left: &GrayImage,
+    right: &GrayImage,
+    small_left: GrayImage,
+    small_right: GrayImage,
+    f: usize,
+    params: &SgmParams,
+) -> Result<SgmOutput, Error> {
+    let (width, height) = left.size();
+    debug_assert_eq!(right.size(), left.size());
+    let (small_width, small_height) = small_left.size();
     if small_width < params.census.width || small_height < params.census.height {
         return Err(Error::InvalidParameter {
             name: "downscale",
@@ -104,9 +174,9 @@ fn match_downscaled(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     // At most as many disparities as the reduced pair is wide (rounding outwards can add one).
     let small_max = (range.max + fi - 1).div_euclid(fi).min(small_min + small_width as i32);
     let small_range = DisparityRange { min: small_min, max: small_max.max(small_min + 1) };
-    let small_params = SgmParams { range: small_range, downscale: 1, ..params.clone() };
-    let (small_left, small_right) =
-        rayon::join(|| crate::radiometric::downsample(left, f), || crate::radiometric::downsample(right, f));
+    // An explicit factor reduces once; auto decides again on the reduced pair.
+    let downscale = if params.downscale == Downscale::Auto { Downscale::Auto } else { Downscale::By(1) };
+    let small_params = SgmParams { range: small_range, downscale, ..params.clone() };
     let small = sgm_detailed(&small_left, &small_right, &small_params)?;
     drop((small_left, small_right));
 
@@ -146,7 +216,7 @@ fn match_downscaled(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
         status,
         confidence,
         adaptation: small.adaptation,
-        search: SearchReport { downscale: f, ..small.search },
+        search: SearchReport { downscale: f * small.search.downscale, ..small.search },
     })
 }
 
@@ -574,7 +644,9 @@ mod tests {
         let left = GrayImage::from_fn(101, 61, |x, y| texture(x as i64 / 2, y as i64 / 2));
         let right = GrayImage::from_fn(101, 61, |x, y| texture((x as i64 + 10) / 2, y as i64 / 2));
         let params = SgmParams { range: DisparityRange::new(0, 24).unwrap(), ..SgmParams::default() };
-        let reduced = sgm_detailed(&left, &right, &SgmParams { downscale: 2, ..params.clone() }).unwrap();
+        let reduced =
+            sgm_detailed(&left, &right, &SgmParams { downscale: Downscale::By(2), ..params.clone() })
+                .unwrap();
         let small = sgm_detailed(
             &crate::radiometric::downsample(&left, 2),
             &crate::radiometric::downsample(&right, 2),
@@ -603,9 +675,51 @@ mod tests {
         let err = sgm_detailed(
             &tiny,
             &tiny,
-            &SgmParams { downscale: 4, range: DisparityRange::new(0, 4).unwrap(), ..SgmParams::default() },
+            &SgmParams {
+                downscale: Downscale::By(4),
+                range: DisparityRange::new(0, 4).unwrap(),
+                ..SgmParams::default()
+            },
         );
         assert!(err.unwrap_err().to_string().contains("downscale"));
+    }
+
+    /// A view with no detail finer than a few pixels: the hash texture sampled every 4 px and
+    /// interpolated bilinearly in between, shifted by `shift` px.
+    fn enlarged(w: usize, h: usize, shift: i64) -> GrayImage {
+        let at = |x: i64, y: i64| f64::from(texture(x, y));
+        GrayImage::from_fn(w, h, |x, y| {
+            let (fx, fy) = ((x as i64 + shift) as f64 / 4.0, y as f64 / 4.0);
+            let (x0, y0) = (fx.floor() as i64, fy.floor() as i64);
+            let (tx, ty) = (fx - x0 as f64, fy - y0 as f64);
+            let top = at(x0, y0) * (1.0 - tx) + at(x0 + 1, y0) * tx;
+            let bottom = at(x0, y0 + 1) * (1.0 - tx) + at(x0 + 1, y0 + 1) * tx;
+            (top * (1.0 - ty) + bottom * ty).round() as u16
+        })
+    }
+
+    #[test]
+    fn auto_downscale_halves_smooth_pairs_only_and_not_below_its_floor() {
+        let params = SgmParams { range: DisparityRange::new(0, 32).unwrap(), ..SgmParams::default() };
+        let sharp = GrayImage::from_fn(800, 500, |x, y| texture(x as i64, y as i64));
+        assert!(reduction(&sharp, &sharp, &params).is_none());
+        let smooth = enlarged(800, 500, 0);
+        let energy = gradient_energy(&crate::radiometric::downsample(&smooth, 2)) / gradient_energy(&smooth);
+        assert!(energy > AUTO_DOWNSCALE_SMOOTHNESS, "{energy}");
+        assert!(matches!(reduction(&smooth, &smooth, &params), Some((2, l, _)) if l.size() == (400, 250)));
+        // One sharp view keeps the full resolution; so does a pair that would halve below the floor
+        // (300 x 250 is 75 000 pixels); an explicit factor is obeyed.
+        assert!(reduction(&smooth, &sharp, &params).is_none());
+        let small = enlarged(600, 500, 0);
+        assert!(reduction(&small, &small, &params).is_none());
+        let once = SgmParams { downscale: Downscale::By(1), ..params.clone() };
+        assert!(reduction(&smooth, &smooth, &once).is_none());
+        // End to end: the smooth pair is matched halved and its 6 px shift comes back.
+        let right = enlarged(800, 500, 6);
+        let out = sgm_detailed(&smooth, &right, &params).unwrap();
+        assert_eq!((out.search.downscale, out.disparity.size()), (2, (800, 500)));
+        let near = out.disparity.as_slice().iter().filter(|d| (*d - 6.0).abs() <= 1.0).count();
+        assert!(near > 800 * 500 * 3 / 4, "{near}");
     }
 
     #[test]

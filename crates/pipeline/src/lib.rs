@@ -48,7 +48,7 @@ pub use run::{DepthResult, Rectification, StageTimings};
 pub use sizes::parse_scaled;
 
 pub use stereo_disparity::{
-    parse_named, Adaptation, BmCost, BmParams, DisparityRange, Named, PathCount, Preset, Search,
+    parse_named, Adaptation, BmCost, BmParams, DisparityRange, Downscale, Named, PathCount, Preset, Search,
     SearchReport, SgmParams, Subpixel,
 };
 pub use stereo_image::{DisparityMap, GrayImage, Image, ImageRef};

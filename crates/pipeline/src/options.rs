@@ -2,7 +2,7 @@
 //! to [`Matcher`] parameters in one place: the command line and the Python package both call
 //! [`MatcherOptions::resolve`], so the same options give the same parameters everywhere.
 
-use stereo_disparity::{BmCost, BmParams, PathCount, Preset, Search, SgmParams, Subpixel};
+use stereo_disparity::{BmCost, BmParams, Downscale, PathCount, Preset, Search, SgmParams, Subpixel};
 
 use crate::{Matcher, MatcherKind};
 
@@ -21,8 +21,8 @@ pub struct MatcherOptions {
     pub paths: Option<PathCount>,
     /// SGM: the full or the coarse-to-fine search ([`Search`]).
     pub search: Option<Search>,
-    /// SGM: match the pair reduced by this factor ([`SgmParams::downscale`]).
-    pub downscale: Option<usize>,
+    /// SGM: match the pair reduced ([`SgmParams::downscale`]).
+    pub downscale: Option<Downscale>,
     pub p1: Option<u16>,
     pub p2: Option<u16>,
     pub edge_snap: Option<usize>,
@@ -153,13 +153,18 @@ impl MatcherOptions {
         }
     }
 
-    fn downscale(&self, default: usize) -> Result<usize, OptionError> {
+    fn downscale(&self, default: Downscale) -> Result<Downscale, OptionError> {
         match self.downscale {
-            Some(f) if !(1..=stereo_disparity::MAX_DOWNSCALE).contains(&f) => Err(OptionError::Invalid {
-                option: "downscale",
-                message: format!("must be between 1 and {}, got {f}", stereo_disparity::MAX_DOWNSCALE),
-            }),
-            Some(f) => Ok(f),
+            Some(Downscale::By(f)) if !(1..=stereo_disparity::MAX_DOWNSCALE).contains(&f) => {
+                Err(OptionError::Invalid {
+                    option: "downscale",
+                    message: format!(
+                        "must be auto or between 1 and {}, got {f}",
+                        stereo_disparity::MAX_DOWNSCALE
+                    ),
+                })
+            }
+            Some(d) => Ok(d),
             None => Ok(default),
         }
     }

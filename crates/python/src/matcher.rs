@@ -11,7 +11,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use stereo_image::{DisparityRange, GrayImage, Image};
 use stereo_pipeline::{
-    parse_named, BmCost, MatcherKind, MatcherOptions, Named, OptionError, PathCount, Preset, Search, Subpixel,
+    parse_named, BmCost, Downscale, MatcherKind, MatcherOptions, Named, OptionError, PathCount, Preset,
+    Search, Subpixel,
 };
 use stereo_pipeline::{DepthResult, MemoryLimit, PipelineParams, Plan};
 
@@ -44,8 +45,9 @@ use crate::input::{Input, View};
 /// - ``paths`` [None: 8, 4 with preset "fast"]: SGM aggregation paths, 4 or 8.
 /// - ``search`` [None: "auto"]: "full", "hierarchical" (coarse to fine) or "auto" (hierarchical
 ///   from 256 disparities, or 128 from 2 megapixels; else full).
-/// - ``downscale`` [None: 1]: SGM: match the pair reduced this many times on each side, then
-///   bring the disparities back to full size (about downscale³ less work, coarser disparities).
+/// - ``downscale`` [None: "auto"]: SGM: match the pair reduced this many times on each side, then
+///   bring the disparities back to full size (about downscale³ less work, coarser disparities);
+///   "auto" halves it while both views hold no detail finer than 2 px; 1: full resolution.
 /// - ``p1`` [None: 20], ``p2`` [None: 80]: SGM penalties, in census bits.
 /// - ``uniqueness`` [None: 0 (sgm), 10 (bm)]: uniqueness margin, percent; 0 disables it.
 /// - ``lr_max_diff`` [None: 3 (sgm; 1 with fill), 1 (bm)]: left-right check tolerance, px.
@@ -108,6 +110,16 @@ fn scaled(obj: &Bound<'_, PyAny>, what: &str, unit: u64) -> PyResult<u64> {
         .map_err(|err| value_error(format!("invalid {what} {text:?}: {err}")))
 }
 
+/// ``downscale``: ``"auto"`` or a factor from 1 to 8.
+fn downscale_option(obj: &Bound<'_, PyAny>) -> PyResult<Downscale> {
+    if let Ok(f) = obj.extract::<i64>() {
+        let max = stereo_disparity::MAX_DOWNSCALE as i64;
+        return int_in("downscale", f, 1, max).map(Downscale::By);
+    }
+    let text: String = obj.extract().map_err(|_| value_error("downscale must be \"auto\" or an int"))?;
+    text.parse::<Downscale>().map_err(|err| value_error(err.to_string()))
+}
+
 #[pymethods]
 impl Matcher {
     #[new]
@@ -134,7 +146,7 @@ impl Matcher {
         single_pass: bool,
         paths: Option<i64>,
         search: Option<&str>,
-        downscale: Option<i64>,
+        downscale: Option<&Bound<'_, PyAny>>,
         p1: Option<i64>,
         p2: Option<i64>,
         uniqueness: Option<i64>,
@@ -193,9 +205,7 @@ impl Matcher {
             single_pass,
             paths,
             search: search.map(|s| named::<Search>("search", s)).transpose()?,
-            downscale: downscale
-                .map(|f| int_in("downscale", f, 1, stereo_disparity::MAX_DOWNSCALE as i64))
-                .transpose()?,
+            downscale: downscale.map(downscale_option).transpose()?,
             p1: p1.map(|p| int_in("p1", p, 0, u16::MAX as i64)).transpose()?,
             p2: p2.map(|p| int_in("p2", p, 0, u16::MAX as i64)).transpose()?,
             edge_snap: edge_snap.map(|e| int_in("edge_snap", e, 0, i64::MAX)).transpose()?,
