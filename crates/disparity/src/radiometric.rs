@@ -77,6 +77,7 @@ impl CoarseMatch {
             paths: crate::PathCount::Four,
             single_pass: true,
             search: crate::Search::Full,
+            downscale: crate::Downscale::By(1),
             edge_snap_radius: 0,
             fill: false,
             wmf_radius: 0,

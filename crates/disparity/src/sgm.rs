@@ -513,6 +513,8 @@ fn match_coarse_to_fine(
         range: coarse_range,
         adapt_to_pair: false,
         search: if params.search == Search::Full { Search::Full } else { Search::Auto },
+        // The levels below are the search's own: the pair at this level was not reduced.
+        downscale: Downscale::By(1),
         fill: false,
         speckle_size: params.speckle_size / 4,
         edge_snap_passes: 0,

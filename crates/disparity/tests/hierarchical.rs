@@ -2,7 +2,7 @@
 //! search over a wide range, far fewer disparities per pixel, the automatic choice, the memory
 //! fallback and determinism across thread counts.
 
-use stereo_disparity::{sgm_detailed, DisparityRange, PathCount, Search, SgmOutput, SgmParams};
+use stereo_disparity::{sgm_detailed, DisparityRange, Downscale, PathCount, Search, SgmOutput, SgmParams};
 use stereo_scene::{Foreground, Rect, Scene, SceneParams};
 
 /// A 640×200 scene over a wide range: a plane slanting from 60 to about 120 px, a rectangle in
@@ -41,8 +41,10 @@ fn good_share(scene: &Scene, out: &SgmOutput, range: DisparityRange) -> (f64, f6
     (100.0 * good as f64 / total as f64, 100.0 * valid as f64 / total as f64)
 }
 
+/// The search asked for, on the pair at full resolution: the rendered scenes are smooth enough
+/// for [`Downscale::Auto`] to halve them, and these tests are about the search itself.
 fn params(range: DisparityRange, search: Search) -> SgmParams {
-    SgmParams { range, search, ..SgmParams::default() }
+    SgmParams { range, search, downscale: Downscale::By(1), ..SgmParams::default() }
 }
 
 #[test]
