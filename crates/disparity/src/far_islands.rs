@@ -461,7 +461,7 @@ mod tests {
     fn a_far_island_joined_to_the_scene_only_by_a_jump_in_depth_goes() {
         // A scene at 5 px with a 6x6 island at 2 px whose edge pixel at 3 px touches one at 4 px,
         // which touches the scene: 1 px steps, but each a jump of a third or more in depth, so
-        // the island is alone. The 3 and 4 px pixels are no nearer than half the scene: they stay.
+        // the island is alone. The 3 and 4 px pixels are not twice as far as the scene: they stay.
         let mut d = DisparityMap::new(64, 64, 5.0);
         for y in 20..26 {
             for x in 20..26 {
