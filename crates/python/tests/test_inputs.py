@@ -97,10 +97,17 @@ def test_compute_detailed(pair):
     bm = sd.Matcher(matcher="bm", max_disparity=32).compute_detailed(left, right)
     assert bm.confidence is None and bm.adaptation is None and bm.search is None
     # Which search ran: the whole range at 32 disparities, bands with search="hierarchical".
-    assert res.search == {"search": "full", "levels": 0, "mean_disparities_searched": 32.0}
+    assert res.search == {"search": "full", "levels": 0, "mean_disparities_searched": 32.0, "downscale": 1}
     coarse = sd.Matcher(max_disparity=32, search="hierarchical").compute_detailed(left, right).search
     assert coarse["search"] == "hierarchical" and coarse["levels"] == 1
     assert 0 < coarse["mean_disparities_searched"] <= 32
+    # A reduced match: the map keeps the pair's size, the report says by how much.
+    halved = sd.Matcher(max_disparity=32, downscale=2).compute_detailed(left, right)
+    assert halved.disparity.shape == left.shape and halved.search["downscale"] == 2
+    assert sd.Matcher(max_disparity=32, downscale="auto").compute_detailed(left, right).search["downscale"] == 1
+    for bad in (0, 9, "half", 1.5):
+        with pytest.raises(ValueError, match="downscale"):
+            sd.Matcher(max_disparity=32, downscale=bad)
 
 
 def test_default_range_is_a_quarter_of_the_width(pair):
