@@ -6,6 +6,14 @@ use rayon::prelude::*;
 use crate::tone::{ToneCorrection, ToneSample};
 use crate::{DisparityMap, GrayImage, Image};
 
+/// `range` for a pair reduced by `factor` ([`downsample`]): the bounds divided and rounded
+/// outwards, at least one disparity.
+pub(crate) fn reduced_range(range: crate::DisparityRange, factor: usize) -> crate::DisparityRange {
+    let f = factor as i32;
+    let min = range.min.div_euclid(f);
+    crate::DisparityRange { min, max: (range.max + f - 1).div_euclid(f).max(min + 1) }
+}
+
 /// The `factor × factor` box average of `image` (partial blocks at the right and bottom are
 /// dropped), 8-bit samples stored ×257 when the input is 8-bit.
 pub(crate) fn downsample(image: &GrayImage, factor: usize) -> GrayImage {
@@ -65,8 +73,7 @@ impl CoarseMatch {
         let factor = 4;
         let (l, r) = (downsample(left, factor), downsample(right, factor));
         let (cw, ch) = l.size();
-        let min = params.range.min.div_euclid(factor as i32);
-        let max = (params.range.max + factor as i32 - 1).div_euclid(factor as i32).max(min + 1);
+        let crate::DisparityRange { min, max } = reduced_range(params.range, factor);
         if cw < 16 || ch < 16 || (max - min) as usize > cw {
             return None;
         }

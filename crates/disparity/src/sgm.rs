@@ -32,7 +32,7 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     check_pair(left, right)?;
     params.validate()?;
     if let Some((f, small_left, small_right)) = reduction(left, right, params) {
-        return match_downscaled(left, right, small_left, small_right, f, params);
+        return match_downscaled(left, small_left, small_right, f, params);
     }
     let (width, height) = left.size();
     if width < params.census.width || height < params.census.height {
@@ -149,14 +149,12 @@ fn gradient_energy(image: &GrayImage) -> f64 {
 /// the range asked for is rejected ([`crate::PixelStatus::RangeEnd`]).
 fn match_downscaled(
     left: &GrayImage,
-    right: &GrayImage,
     small_left: GrayImage,
     small_right: GrayImage,
     f: usize,
     params: &SgmParams,
 ) -> Result<SgmOutput, Error> {
     let (width, height) = left.size();
-    debug_assert_eq!(right.size(), left.size());
     let (small_width, small_height) = small_left.size();
     if small_width < params.census.width || small_height < params.census.height {
         return Err(Error::InvalidParameter {
@@ -168,12 +166,11 @@ fn match_downscaled(
         });
     }
     let range = params.range;
-    let fi = f as i32;
     crate::check_range(&range, width)?;
-    let small_min = range.min.div_euclid(fi);
+    let small_range = crate::radiometric::reduced_range(range, f);
     // At most as many disparities as the reduced pair is wide (rounding outwards can add one).
-    let small_max = (range.max + fi - 1).div_euclid(fi).min(small_min + small_width as i32);
-    let small_range = DisparityRange { min: small_min, max: small_max.max(small_min + 1) };
+    let small_range =
+        DisparityRange { max: small_range.max.min(small_range.min + small_width as i32), ..small_range };
     // An explicit factor reduces once; auto decides again on the reduced pair.
     let downscale = if params.downscale == Downscale::Auto { Downscale::Auto } else { Downscale::By(1) };
     let small_params = SgmParams { range: small_range, downscale, ..params.clone() };
@@ -505,10 +502,7 @@ fn match_coarse_to_fine(
 ) -> Option<(DisparityMap, SearchReport)> {
     let (width, height) = left.size();
     let range = params.range;
-    let coarse_range = DisparityRange {
-        min: range.min.div_euclid(2),
-        max: (range.max + 1).div_euclid(2).max(range.min.div_euclid(2) + 1),
-    };
+    let coarse_range = crate::radiometric::reduced_range(range, 2);
     let coarse_params = SgmParams {
         range: coarse_range,
         adapt_to_pair: false,
