@@ -195,6 +195,8 @@ pub enum MatcherReport {
         subpixel: &'static str,
         median: bool,
         speckle_size: usize,
+        /// Speckle regions at the image border kept from this many pixels (0 = none kept).
+        speckle_keep_border: usize,
         weighted_median_radius: usize,
         /// Edge snapping radius (px, 0 = off) and passes.
         edge_snap_radius: usize,
@@ -343,6 +345,7 @@ impl MatcherReport {
                 subpixel: p.subpixel.name(),
                 median: p.median,
                 speckle_size: p.speckle_size,
+                speckle_keep_border: p.speckle_keep_border,
                 weighted_median_radius: p.wmf_radius,
                 edge_snap_radius: p.edge_snap_radius,
                 edge_snap_passes: p.edge_snap_passes,

@@ -309,6 +309,11 @@ pub struct SgmParams {
     pub speckle_size: usize,
     /// The largest disparity difference (px) between neighbours of one speckle region.
     pub speckle_max_diff: f32,
+    /// Speckle regions that touch the image border and hold at least this many pixels are kept
+    /// (0: none are): the border cuts them, so their size in the image says little about the
+    /// surface they belong to (a ground plane at the bottom edge, a wall at the left edge).
+    /// [`SgmParams::with_fill`] sets [`DENSE_SPECKLE_KEEP_BORDER`].
+    pub speckle_keep_border: usize,
     /// Dense output: invalid pixels are filled, occlusions from the background side and
     /// mismatches by interpolation ([`fill_invalid`]); [`sgm_detailed`] says which were filled.
     pub fill: bool,
@@ -357,6 +362,7 @@ impl Default for SgmParams {
             max_memory: None,
             speckle_size: 0,
             speckle_max_diff: 1.0,
+            speckle_keep_border: 0,
             fill: false,
             // Radius 5, one pass: better bad2 on all seven scenes, about 1 ms per scene
             // (docs/accuracy.md, "Edge snapping").
@@ -452,13 +458,16 @@ impl SgmParams {
     }
 
     /// Dense output (`--fill`): [`SgmParams::fill`] on and, unless a speckle size is already
-    /// set, speckles under [`DENSE_SPECKLE_SIZE`] pixels removed first so the fill replaces them.
+    /// set, speckles under [`DENSE_SPECKLE_SIZE`] pixels removed first so the fill replaces them
+    /// (but not those at the image border with [`DENSE_SPECKLE_KEEP_BORDER`] pixels or more).
     /// A dense map can afford a strict check, since what it rejects gets filled from the
     /// background: the left-right tolerance tightens to [`DENSE_LR_MAX_DIFF`], edge snapping runs
     /// twice, and without a weighted median of its own (Accurate has one) a small one (radius 2,
     /// σc 20) runs at the depth edges. Chosen by measurement (docs/accuracy.md).
     pub fn with_fill(self) -> Self {
         let speckle_size = if self.speckle_size == 0 { DENSE_SPECKLE_SIZE } else { self.speckle_size };
+        let speckle_keep_border =
+            if self.speckle_keep_border == 0 { DENSE_SPECKLE_KEEP_BORDER } else { self.speckle_keep_border };
         let lr_max_diff = self.lr_max_diff.map(|d| d.min(DENSE_LR_MAX_DIFF));
         let (wmf_radius, wmf_sigma_color, wmf_edges_only) = if self.wmf_radius == 0 {
             (2, 20.0, true)
@@ -468,6 +477,7 @@ impl SgmParams {
         SgmParams {
             fill: true,
             speckle_size,
+            speckle_keep_border,
             lr_max_diff,
             lr_left_neighbour: false,
             edge_snap_passes: self.edge_snap_passes.max(2),
@@ -484,6 +494,10 @@ pub const MAX_DOWNSCALE: usize = 8;
 
 /// The speckle size [`SgmParams::with_fill`] uses: chosen by measurement of the filled maps.
 pub const DENSE_SPECKLE_SIZE: usize = 400;
+
+/// The [`SgmParams::speckle_keep_border`] of [`SgmParams::with_fill`]: chosen by measurement
+/// of the filled maps (docs/accuracy.md).
+pub const DENSE_SPECKLE_KEEP_BORDER: usize = 100;
 
 /// The left-right tolerance (px) [`SgmParams::with_fill`] tightens to: pixels fattened across a
 /// depth edge fail the check more often and get filled from the background instead.

@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use crate::fill::fill_invalid;
 use crate::filter::{median_3x3, weighted_median, weighted_median_at_edges};
 use crate::snap::snap_edges;
-use crate::speckle::remove_speckles;
+use crate::speckle::remove_speckles_keeping_border;
 use crate::status::{tagged_nan, untag, PixelStatus};
 use crate::winner::RangeEnds;
 use crate::{DisparityMap, DisparityRange, Error, GrayImage, Image, SgmParams};
@@ -193,7 +193,12 @@ fn reject_border_cut(disparity: &mut DisparityMap, half_width: usize, dense: boo
 pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params: &SgmParams) -> SgmOutput {
     reject_border_cut(&mut disparity, params.census.width / 2, params.fill);
     crate::far_islands::reject_far_islands_tagged(&mut disparity, params.range);
-    remove_speckles(&mut disparity, params.speckle_size, params.speckle_max_diff);
+    remove_speckles_keeping_border(
+        &mut disparity,
+        params.speckle_size,
+        params.speckle_max_diff,
+        params.speckle_keep_border,
+    );
     let status = untag(&mut disparity);
     if params.fill {
         fill_invalid(&mut disparity, &status);

@@ -511,6 +511,7 @@ fn match_coarse_to_fine(
         downscale: Downscale::By(1),
         fill: false,
         speckle_size: params.speckle_size / 4,
+        speckle_keep_border: params.speckle_keep_border / 4,
         edge_snap_passes: 0,
         wmf_radius: 0,
         confidence: false,

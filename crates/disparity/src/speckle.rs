@@ -9,27 +9,45 @@ use crate::DisparityMap;
 /// pixels become NaN (tagged [`PixelStatus::Speckle`] inside the pipeline). Returns how many
 /// pixels were removed. `max_size` 0 or 1 removes nothing. O(W·H): one flood fill per region.
 pub fn remove_speckles(disparity: &mut DisparityMap, max_size: usize, max_diff: f32) -> usize {
+    remove_speckles_keeping_border(disparity, max_size, max_diff, 0)
+}
+
+/// [`remove_speckles`], except that a region touching the image border stays when it holds at
+/// least `keep_border` pixels (0: never): [`crate::SgmParams::speckle_keep_border`].
+pub(crate) fn remove_speckles_keeping_border(
+    disparity: &mut DisparityMap,
+    max_size: usize,
+    max_diff: f32,
+    keep_border: usize,
+) -> usize {
     if max_size <= 1 {
         return 0;
     }
-    let (w, _) = disparity.size();
+    let (w, h) = disparity.size();
     let d = disparity.as_mut_slice();
     let mut seen = vec![false; d.len()];
     let mut stack: Vec<u32> = Vec::new();
     let mut region: Vec<u32> = Vec::new();
     let mut removed = 0;
+    let at_border = |p: usize| {
+        let (x, y) = (p % w, p / w);
+        x == 0 || y == 0 || x + 1 == w || y + 1 == h
+    };
     for start in 0..d.len() {
         if seen[start] || d[start].is_nan() {
             continue;
         }
         region.clear();
+        let mut touches_border = false;
         // Only the first `max_size` members are remembered: a larger region is kept anyway.
         flood_region(d, w, start, max_diff, &mut seen, &mut stack, |p, _| {
+            touches_border |= at_border(p);
             if region.len() < max_size {
                 region.push(p as u32);
             }
         });
-        if region.len() < max_size {
+        let kept_at_border = keep_border > 0 && touches_border && region.len() >= keep_border;
+        if region.len() < max_size && !kept_at_border {
             for &p in &region {
                 d[p as usize] = tagged_nan(PixelStatus::Speckle);
             }
@@ -108,6 +126,40 @@ mod tests {
         }
         assert_eq!(remove_speckles(&mut e, 4, 1.0), 0);
         assert_eq!(remove_speckles(&mut e, 0, 1.0), 0);
+    }
+
+    #[test]
+    fn regions_cut_by_the_border_stay_from_their_own_size() {
+        // A 12x10 map at 5 px with three islands at 20 px: 2x3 at the left border, 3x3 at the
+        // bottom border, 3x3 inside.
+        let island = |d: &mut DisparityMap, xs: std::ops::Range<usize>, ys: std::ops::Range<usize>| {
+            for y in ys {
+                for x in xs.clone() {
+                    d.set(x, y, 20.0);
+                }
+            }
+        };
+        let map = || {
+            let mut d = DisparityMap::new(12, 10, 5.0);
+            island(&mut d, 0..2, 2..5);
+            island(&mut d, 6..9, 7..10);
+            island(&mut d, 4..7, 2..5);
+            d
+        };
+        let mut plain = map();
+        assert_eq!(remove_speckles(&mut plain, 20, 1.0), 6 + 9 + 9);
+        // Border regions of 6 or more pixels stay: both border islands, not the inner one.
+        let mut d = map();
+        assert_eq!(remove_speckles_keeping_border(&mut d, 20, 1.0, 6), 9);
+        assert!(d.get(5, 3).is_nan());
+        assert_eq!((d.get(0, 2), d.get(1, 4), d.get(7, 9)), (20.0, 20.0, 20.0));
+        // From 7 pixels the 6-pixel island at the left border goes too.
+        let mut d = map();
+        assert_eq!(remove_speckles_keeping_border(&mut d, 20, 1.0, 7), 6 + 9);
+        assert!(d.get(0, 2).is_nan() && d.get(7, 9) == 20.0);
+        // 0 keeps none: the same as remove_speckles.
+        let mut d = map();
+        assert_eq!(remove_speckles_keeping_border(&mut d, 20, 1.0, 0), 6 + 9 + 9);
     }
 
     #[test]
