@@ -4,8 +4,8 @@
 
 use std::arch::x86_64::*;
 
-use super::layout::{feasible, padded_lanes, AdRows, PathIn, Samples, Window, BT_PAD};
-use super::scalar::{bt_fill_in_order, census_row_scalar, cost_row_scalar, cost_row_u8_scalar};
+use super::layout::{feasible, padded_lanes, AdRows, PathIn, Samples, Window, BT_PAD, JUNK_COST};
+use super::scalar::{bt_fill_in_order, census_row_scalar, cost_row_u8_scalar};
 
 /// Minimum of the 16 unsigned 16-bit lanes.
 #[inline]
@@ -192,10 +192,12 @@ unsafe fn add_ad_avx2(
     }
 }
 
-/// [`super::cost_row`] for AVX2 machines: the scalar reference compiled with POPCNT.
+/// [`super::cost_row`] for AVX2 machines: the census Hamming distances 16 disparities per step
+/// ([`hamming_block_avx2`]) where all 16 right pixels are inside the row, the scalar reference's
+/// step elsewhere (the ends of the feasible range), then the AD term ([`add_ad_avx2`]).
 ///
 /// # Safety
-/// The CPU must have AVX2 and POPCNT.
+/// The CPU must have AVX2 and POPCNT; lengths as checked by [`super::cost_row`].
 #[target_feature(enable = "avx2,popcnt")]
 pub(super) unsafe fn cost_row_avx2(
     left: &[u64],
@@ -206,16 +208,78 @@ pub(super) unsafe fn cost_row_avx2(
     ad: Option<AdRows<'_>>,
     out: &mut [u16],
 ) {
-    cost_row_scalar(left, right, min_disparity, nd, worst, None, out);
-    if let Some(ad) = &ad {
-        let (width, lanes) = (left.len(), padded_lanes(nd));
-        for x in 0..width {
-            let (lo, hi, first) = feasible(x, width, min_disparity, nd);
-            // SAFETY: `lo..hi` are the feasible disparities of `x`, whose `lanes` entries
-            // start at `x * lanes` (`out.len() == width * lanes` was checked).
-            add_ad_avx2(ad, out.as_mut_ptr().add(x * lanes), x, width, first, lo, hi);
+    let (width, lanes) = (left.len(), padded_lanes(nd));
+    for (x, costs) in out.chunks_exact_mut(lanes).enumerate() {
+        let l = left[x];
+        let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+        costs[..lo].fill(worst);
+        // Disparity index k has its right pixel at first - k.
+        let scalar = |costs: &mut [u16], k: usize| {
+            costs[k] = (l ^ right[(first - k as i64) as usize]).count_ones() as u16;
+        };
+        let mut k = lo;
+        while k < hi && !k.is_multiple_of(16) {
+            scalar(costs, k);
+            k += 1;
+        }
+        while k + 16 <= hi {
+            // SAFETY: k..k + 16 are feasible, so right pixels first - k - 15 ..= first - k are
+            // inside the row; entries k..k + 16 are this pixel's (k + 16 <= hi <= lanes).
+            let block = hamming_block_avx2(l, right.as_ptr().add((first - k as i64) as usize - 15));
+            _mm256_storeu_si256(costs.as_mut_ptr().add(k).cast(), block);
+            k += 16;
+        }
+        while k < hi {
+            scalar(costs, k);
+            k += 1;
+        }
+        costs[hi..nd].fill(worst);
+        costs[nd..].fill(JUNK_COST);
+        if let Some(ad) = &ad {
+            // SAFETY: `lo..hi` are the feasible disparities of `x`, whose `lanes` entries start
+            // at `costs` (`out.len() == width * lanes` was checked).
+            add_ad_avx2(ad, costs.as_mut_ptr(), x, width, first, lo, hi);
         }
     }
+}
+
+/// The 16 Hamming distances `popcount(l ^ r[15 - i])` for `i` in `0..16` (`r` the 16 right
+/// census strings from the lowest address, so lane `i` is disparity `k + i`), as 16-bit lanes:
+/// nibble-table popcounts summed per string by `vpsadbw`, packed down to 16 bits, put in order.
+///
+/// # Safety
+/// The CPU must have AVX2; `r` points at 16 readable `u64`.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn hamming_block_avx2(l: u64, r: *const u64) -> __m256i {
+    let nibbles = _mm256_setr_epi8(
+        0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4, 0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4,
+    );
+    let low = _mm256_set1_epi8(0x0f);
+    let lv = _mm256_set1_epi64x(l as i64);
+    let count = |v: __m256i| {
+        let v = _mm256_xor_si256(v, lv);
+        let lo = _mm256_shuffle_epi8(nibbles, _mm256_and_si256(v, low));
+        let hi = _mm256_shuffle_epi8(nibbles, _mm256_and_si256(_mm256_srli_epi16::<4>(v), low));
+        _mm256_sad_epu8(_mm256_add_epi8(lo, hi), _mm256_setzero_si256())
+    };
+    // Lowest address first: the 64-bit lanes hold disparities k+15..k+12, k+11..k+8, k+7..k+4
+    // and k+3..k, each count < 65 in the low 16 bits of its lane.
+    let c15 = count(_mm256_loadu_si256(r.cast()));
+    let c11 = count(_mm256_loadu_si256(r.add(4).cast()));
+    let c7 = count(_mm256_loadu_si256(r.add(8).cast()));
+    let c3 = count(_mm256_loadu_si256(r.add(12).cast()));
+    // 32-bit units [3 2 7 6 | 1 0 5 4], then 16-bit [3 2 7 6 11 10 15 14 | 1 0 5 4 9 8 13 12].
+    let a = _mm256_packus_epi32(c3, c7);
+    let b = _mm256_packus_epi32(c11, c15);
+    let packed = _mm256_packus_epi32(a, b);
+    // Pairs (1 0) (3 2) … in order, then each pair's two words swapped.
+    let ordered = _mm256_permutevar8x32_epi32(packed, _mm256_setr_epi32(4, 0, 5, 1, 6, 2, 7, 3));
+    let swap = _mm256_setr_epi8(
+        2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13, 2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15,
+        12, 13,
+    );
+    _mm256_shuffle_epi8(ordered, swap)
 }
 
 /// [`bt_fill_in_order`] compiled for AVX2 (eight 32-bit lanes for the divisions by 514).
