@@ -5,7 +5,7 @@
 use std::arch::x86_64::*;
 
 use super::layout::{feasible, padded_lanes, AdRows, PathIn, Samples, Window, BT_PAD, JUNK_COST};
-use super::scalar::{bt_fill_in_order, census_row_scalar, cost_row_u8_scalar};
+use super::scalar::{bt_fill_in_order, cost_row_u8_scalar, pad_window_rows};
 
 /// Minimum of the 16 unsigned 16-bit lanes.
 #[inline]
@@ -291,10 +291,13 @@ pub(super) unsafe fn bt_fill_avx2(row: &[u16], value: &mut [u8], lo: &mut [u8], 
     bt_fill_in_order(row, value, lo, hi)
 }
 
-/// [`census_row_scalar`] compiled for AVX2 (auto-vectorised over pixels).
+/// [`super::scalar::census_row_scalar`] with AVX2: 16 pixels per step, their bits gathered in four 16-bit
+/// accumulators (census bits 0–15, 16–31, 32–47 and 48–63, each filled most significant bit
+/// first, as the reference shifts them in) and interleaved into the 64-bit strings at the end;
+/// the pixels past the last whole step as in the reference.
 ///
 /// # Safety
-/// The CPU must have AVX2.
+/// The CPU must have AVX2; lengths as for [`super::scalar::census_row_scalar`].
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn census_row_avx2(
     image: Samples<'_>,
@@ -303,5 +306,74 @@ pub(super) unsafe fn census_row_avx2(
     padded: &mut [u16],
     bits: &mut [u64],
 ) {
-    census_row_scalar(image, window, y, padded, bits)
+    pad_window_rows(image, window, y, padded);
+    let width = image.size().0;
+    let (rx, ry) = (window.width / 2, window.height / 2);
+    let pw = width + 2 * rx;
+    let centre = image.row(y);
+    let n = window.width * window.height - 1;
+    let tolerance = _mm256_set1_epi16(window.tolerance as i16);
+    let one = _mm256_set1_epi16(1);
+    let zero = _mm256_setzero_si256();
+    // Where each neighbour of the window (centre skipped, in the reference's order) starts in
+    // `padded`, relative to the pixel.
+    let mut offsets = [0usize; 64];
+    let mut i = 0;
+    for dy in 0..window.height {
+        for dx in 0..window.width {
+            if dx != rx || dy != ry {
+                offsets[i] = dy * pw + dx;
+                i += 1;
+            }
+        }
+    }
+    let whole = width - width % 16;
+    for x in (0..whole).step_by(16) {
+        // SAFETY: x + 16 <= width, the length of `centre` and of `bits`; each padded row holds
+        // `pw = width + 2 * rx` samples and dx + x + 16 <= 2 * rx + width.
+        let c = _mm256_loadu_si256(centre.as_ptr().add(x).cast());
+        let threshold = _mm256_subs_epu16(c, tolerance);
+        let mut acc = [zero; 4];
+        // Neighbour i is census bit n - 1 - i: accumulator j takes the neighbours of bits
+        // 16j..16j + 16, highest bit (lowest i) first.
+        for (j, a) in acc.iter_mut().enumerate().rev() {
+            let first = n.saturating_sub(16 * j + 16);
+            let end = n.saturating_sub(16 * j);
+            let mut v = zero;
+            for &offset in &offsets[first..end] {
+                let neighbour = _mm256_loadu_si256(padded.as_ptr().add(offset + x).cast());
+                // neighbour < threshold exactly when threshold - neighbour (saturating) > 0.
+                let not_darker = _mm256_cmpeq_epi16(_mm256_subs_epu16(threshold, neighbour), zero);
+                v = _mm256_or_si256(_mm256_slli_epi16::<1>(v), _mm256_andnot_si256(not_darker, one));
+            }
+            *a = v;
+        }
+        // 32-bit [bits 16–31 : 0–15] and [48–63 : 32–47] for pixels 0–3 | 8–11 and 4–7 | 12–15.
+        let (lo01, hi01) = (_mm256_unpacklo_epi16(acc[0], acc[1]), _mm256_unpackhi_epi16(acc[0], acc[1]));
+        let (lo23, hi23) = (_mm256_unpacklo_epi16(acc[2], acc[3]), _mm256_unpackhi_epi16(acc[2], acc[3]));
+        // 64-bit strings of pixels 0,1 | 8,9; 2,3 | 10,11; 4,5 | 12,13; 6,7 | 14,15.
+        let a = _mm256_unpacklo_epi32(lo01, lo23);
+        let b = _mm256_unpackhi_epi32(lo01, lo23);
+        let c = _mm256_unpacklo_epi32(hi01, hi23);
+        let d = _mm256_unpackhi_epi32(hi01, hi23);
+        let out = bits.as_mut_ptr().add(x);
+        _mm256_storeu_si256(out.cast(), _mm256_permute2x128_si256::<0x20>(a, b));
+        _mm256_storeu_si256(out.add(4).cast(), _mm256_permute2x128_si256::<0x20>(c, d));
+        _mm256_storeu_si256(out.add(8).cast(), _mm256_permute2x128_si256::<0x31>(a, b));
+        _mm256_storeu_si256(out.add(12).cast(), _mm256_permute2x128_si256::<0x31>(c, d));
+    }
+    // The rest as the reference does it.
+    let tail = &mut bits[whole..width];
+    tail.fill(0);
+    for (dy, p) in padded.chunks_exact(pw).enumerate() {
+        for dx in 0..window.width {
+            if dx == rx && dy == ry {
+                continue;
+            }
+            let neighbours = &p[dx + whole..dx + width];
+            for ((b, &nb), &c) in tail.iter_mut().zip(neighbours).zip(&centre[whole..]) {
+                *b = (*b << 1) | u64::from(nb < c.saturating_sub(window.tolerance));
+            }
+        }
+    }
 }
