@@ -467,7 +467,10 @@ pub(crate) fn keep_smaller(
         // SAFETY: `Level::Avx512` is only chosen when the CPU has AVX-512F/BW/VL; lengths checked.
         #[cfg(target_arch = "x86_64")]
         Level::Avx512 => unsafe { avx512::keep_smaller_avx512(costs, first_index, best, index) },
-        _ => scalar::keep_smaller_scalar(costs, first_index, best, index),
+        // SAFETY: `Level::Avx2` is only chosen when the CPU has AVX2; lengths checked above.
+        #[cfg(target_arch = "x86_64")]
+        Level::Avx2 => unsafe { avx2::keep_smaller_avx2(costs, first_index, best, index) },
+        Level::Scalar => scalar::keep_smaller_scalar(costs, first_index, best, index),
     }
 }
 

@@ -5,7 +5,7 @@
 use std::arch::x86_64::*;
 
 use super::layout::{feasible, padded_lanes, AdRows, PathIn, Samples, Window, BT_PAD, JUNK_COST};
-use super::scalar::{bt_fill_in_order, cost_row_u8_scalar, pad_window_rows};
+use super::scalar::{bt_fill_in_order, cost_row_u8_scalar, keep_smaller_scalar, pad_window_rows};
 
 /// Minimum of the 16 unsigned 16-bit lanes.
 #[inline]
@@ -121,6 +121,33 @@ pub(super) unsafe fn cost_row_u8_avx2(
     out: &mut [u8],
 ) {
     cost_row_u8_scalar(left, right, min_disparity, nd, worst, ad, out)
+}
+
+/// AVX2 [`super::keep_smaller`]: 16 lanes per step (`best` takes the unsigned minimum, `index`
+/// the new index where the cost is strictly smaller), the lanes past the last whole step as in
+/// the reference.
+///
+/// # Safety
+/// The CPU must have AVX2; lengths as checked by [`super::keep_smaller`].
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn keep_smaller_avx2(costs: &[u16], first_index: u16, best: &mut [u16], index: &mut [u16]) {
+    let n = costs.len();
+    let iota = _mm256_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    let mut k = 0;
+    while k + 16 <= n {
+        // SAFETY: `k + 16 <= n`, the length of all three slices.
+        let c = _mm256_loadu_si256(costs.as_ptr().add(k).cast());
+        let b = _mm256_loadu_si256(best.as_ptr().add(k).cast());
+        let i = _mm256_loadu_si256(index.as_ptr().add(k).cast());
+        // Not better where c >= b, i.e. max(c, b) == c.
+        let keep = _mm256_cmpeq_epi16(_mm256_max_epu16(c, b), c);
+        let ks = _mm256_add_epi16(iota, _mm256_set1_epi16((usize::from(first_index) + k) as i16));
+        _mm256_storeu_si256(best.as_mut_ptr().add(k).cast(), _mm256_min_epu16(c, b));
+        _mm256_storeu_si256(index.as_mut_ptr().add(k).cast(), _mm256_blendv_epi8(ks, i, keep));
+        k += 16;
+    }
+    keep_smaller_scalar(&costs[k..], first_index + k as u16, &mut best[k..], &mut index[k..]);
 }
 
 /// Lane masks for [`add_ad_avx2`]: 16 entries read from `MASKS[16 - n..]` are set from lane
