@@ -41,7 +41,7 @@ pub(crate) fn remove_speckles_keeping_border(
         let mut touches_border = false;
         // Only the first `max_size` members are remembered: a larger region is kept anyway.
         flood_region(d, w, start, max_diff, &mut seen, &mut stack, |p, _| {
-            touches_border |= at_border(p);
+            touches_border |= keep_border > 0 && at_border(p);
             if region.len() < max_size {
                 region.push(p as u32);
             }

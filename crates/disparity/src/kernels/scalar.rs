@@ -268,19 +268,33 @@ pub(crate) fn census_row_scalar(
     bits: &mut [u64],
 ) {
     pad_window_rows(image, window, y, padded);
-    let width = image.size().0;
+    census_span_scalar(padded, window, image.row(y), 0, bits);
+}
+
+/// The transform of pixels `from..` of a row whose window rows `padded` holds (as
+/// [`pad_window_rows`] fills it; `centre` is the row itself, `bits` as long): the loop of
+/// [`census_row_scalar`], which the SIMD kernels also run on the pixels past their last step.
+#[inline(always)]
+pub(crate) fn census_span_scalar(
+    padded: &[u16],
+    window: Window,
+    centre: &[u16],
+    from: usize,
+    bits: &mut [u64],
+) {
+    let width = centre.len();
     let (rx, ry) = (window.width / 2, window.height / 2);
     let pw = width + 2 * rx;
-    let centre = image.row(y);
     let tolerance = window.tolerance;
-    bits.fill(0);
+    let span = &mut bits[from..width];
+    span.fill(0);
     for (dy, p) in padded.chunks_exact(pw).enumerate() {
         for dx in 0..window.width {
             if dx == rx && dy == ry {
                 continue;
             }
-            let neighbours = &p[dx..dx + width];
-            for ((b, &n), &c) in bits.iter_mut().zip(neighbours).zip(centre) {
+            let neighbours = &p[dx + from..dx + width];
+            for ((b, &n), &c) in span.iter_mut().zip(neighbours).zip(&centre[from..]) {
                 *b = (*b << 1) | u64::from(n < c.saturating_sub(tolerance));
             }
         }

@@ -5,7 +5,9 @@
 use std::arch::x86_64::*;
 
 use super::layout::{feasible, padded_lanes, AdRows, PathIn, Samples, Window, BT_PAD, JUNK_COST};
-use super::scalar::{bt_fill_in_order, cost_row_u8_scalar, keep_smaller_scalar, pad_window_rows};
+use super::scalar::{
+    bt_fill_in_order, census_span_scalar, cost_row_u8_scalar, keep_smaller_scalar, pad_window_rows,
+};
 
 /// Minimum of the 16 unsigned 16-bit lanes.
 #[inline]
@@ -390,17 +392,5 @@ pub(super) unsafe fn census_row_avx2(
         _mm256_storeu_si256(out.add(12).cast(), _mm256_permute2x128_si256::<0x31>(c, d));
     }
     // The rest as the reference does it.
-    let tail = &mut bits[whole..width];
-    tail.fill(0);
-    for (dy, p) in padded.chunks_exact(pw).enumerate() {
-        for dx in 0..window.width {
-            if dx == rx && dy == ry {
-                continue;
-            }
-            let neighbours = &p[dx + whole..dx + width];
-            for ((b, &nb), &c) in tail.iter_mut().zip(neighbours).zip(&centre[whole..]) {
-                *b = (*b << 1) | u64::from(nb < c.saturating_sub(window.tolerance));
-            }
-        }
-    }
+    census_span_scalar(padded, window, centre, whole, bits);
 }
