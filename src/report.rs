@@ -197,6 +197,8 @@ pub enum MatcherReport {
         speckle_size: usize,
         /// Speckle regions at the image border kept from this many pixels (0 = none kept).
         speckle_keep_border: usize,
+        /// Holes up to this many px wide do not split a speckle region (0 = 4-connected only).
+        speckle_bridge: usize,
         weighted_median_radius: usize,
         /// Edge snapping radius (px, 0 = off) and passes.
         edge_snap_radius: usize,
@@ -346,6 +348,7 @@ impl MatcherReport {
                 median: p.median,
                 speckle_size: p.speckle_size,
                 speckle_keep_border: p.speckle_keep_border,
+                speckle_bridge: p.speckle_bridge,
                 weighted_median_radius: p.wmf_radius,
                 edge_snap_radius: p.edge_snap_radius,
                 edge_snap_passes: p.edge_snap_passes,

@@ -314,6 +314,11 @@ pub struct SgmParams {
     /// surface they belong to (a ground plane at the bottom edge, a wall at the left edge).
     /// [`SgmParams::with_fill`] sets [`DENSE_SPECKLE_KEEP_BORDER`].
     pub speckle_keep_border: usize,
+    /// Holes (invalid pixels) up to this many pixels across do not split a speckle region: a
+    /// surface cut into pieces by a few pixels that failed the checks (a thin lamp arm, a slanted
+    /// plane's stripes) is measured as one region (0: 4-connected pixels only, as OpenCV's
+    /// `filterSpeckles`). [`SgmParams::with_fill`] sets [`DENSE_SPECKLE_BRIDGE`].
+    pub speckle_bridge: usize,
     /// Dense output: invalid pixels are filled, occlusions from the background side and
     /// mismatches by interpolation ([`fill_invalid`]); [`sgm_detailed`] says which were filled.
     pub fill: bool,
@@ -363,6 +368,7 @@ impl Default for SgmParams {
             speckle_size: 0,
             speckle_max_diff: 1.0,
             speckle_keep_border: 0,
+            speckle_bridge: 0,
             fill: false,
             // Radius 5, one pass: better bad2 on all seven scenes, about 1 ms per scene
             // (docs/accuracy.md, "Edge snapping").
@@ -459,7 +465,8 @@ impl SgmParams {
 
     /// Dense output (`--fill`): [`SgmParams::fill`] on and, unless a speckle size is already
     /// set, speckles under [`DENSE_SPECKLE_SIZE`] pixels removed first so the fill replaces them
-    /// (but not those at the image border with [`DENSE_SPECKLE_KEEP_BORDER`] pixels or more).
+    /// (but not those at the image border with [`DENSE_SPECKLE_KEEP_BORDER`] pixels or more),
+    /// regions being joined across holes up to [`DENSE_SPECKLE_BRIDGE`] pixels wide.
     /// A dense map can afford a strict check, since what it rejects gets filled from the
     /// background: the left-right tolerance tightens to [`DENSE_LR_MAX_DIFF`], edge snapping runs
     /// twice, and without a weighted median of its own (Accurate has one) a small one (radius 2,
@@ -468,6 +475,8 @@ impl SgmParams {
         let speckle_size = if self.speckle_size == 0 { DENSE_SPECKLE_SIZE } else { self.speckle_size };
         let speckle_keep_border =
             if self.speckle_keep_border == 0 { DENSE_SPECKLE_KEEP_BORDER } else { self.speckle_keep_border };
+        let speckle_bridge =
+            if self.speckle_bridge == 0 { DENSE_SPECKLE_BRIDGE } else { self.speckle_bridge };
         let lr_max_diff = self.lr_max_diff.map(|d| d.min(DENSE_LR_MAX_DIFF));
         let (wmf_radius, wmf_sigma_color, wmf_edges_only) = if self.wmf_radius == 0 {
             (2, 20.0, true)
@@ -478,6 +487,7 @@ impl SgmParams {
             fill: true,
             speckle_size,
             speckle_keep_border,
+            speckle_bridge,
             lr_max_diff,
             lr_left_neighbour: false,
             edge_snap_passes: self.edge_snap_passes.max(2),
@@ -498,6 +508,10 @@ pub const DENSE_SPECKLE_SIZE: usize = 400;
 /// The [`SgmParams::speckle_keep_border`] of [`SgmParams::with_fill`]: chosen by measurement
 /// of the filled maps (docs/accuracy.md).
 pub const DENSE_SPECKLE_KEEP_BORDER: usize = 100;
+
+/// The [`SgmParams::speckle_bridge`] of [`SgmParams::with_fill`] (px): chosen by measurement of
+/// the filled maps, clean and degraded (docs/accuracy.md).
+pub const DENSE_SPECKLE_BRIDGE: usize = 3;
 
 /// The left-right tolerance (px) [`SgmParams::with_fill`] tightens to: pixels fattened across a
 /// depth edge fail the check more often and get filled from the background instead.

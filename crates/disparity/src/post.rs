@@ -198,6 +198,7 @@ pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params
         params.speckle_size,
         params.speckle_max_diff,
         params.speckle_keep_border,
+        params.speckle_bridge,
     );
     let status = untag(&mut disparity);
     if params.fill {

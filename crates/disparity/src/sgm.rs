@@ -512,6 +512,7 @@ fn match_coarse_to_fine(
         fill: false,
         speckle_size: params.speckle_size / 4,
         speckle_keep_border: params.speckle_keep_border / 4,
+        speckle_bridge: params.speckle_bridge / 2,
         edge_snap_passes: 0,
         wmf_radius: 0,
         confidence: false,

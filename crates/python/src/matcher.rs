@@ -367,6 +367,7 @@ impl Matcher {
                 d.set_item("fill", p.fill)?;
                 d.set_item("speckle_size", p.speckle_size)?;
                 d.set_item("speckle_keep_border", p.speckle_keep_border)?;
+                d.set_item("speckle_bridge", p.speckle_bridge)?;
                 d.set_item("edge_snap", p.edge_snap_radius)?;
                 d.set_item("edge_snap_passes", p.edge_snap_passes)?;
                 d.set_item("wmf_radius", p.wmf_radius)?;
