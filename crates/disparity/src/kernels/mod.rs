@@ -392,7 +392,13 @@ pub(crate) fn cost_bands(
         Level::Avx512 if features.vpopcnt => unsafe {
             avx512::cost_bands_avx512(left, right, bands, range_max, worst, ad, out)
         },
-        _ => scalar::cost_bands_scalar(left, right, bands, range_max, worst, ad, out),
+        // SAFETY: AVX2 (which implies POPCNT on every CPU that has it) was detected; lengths and
+        // offsets were checked above.
+        #[cfg(target_arch = "x86_64")]
+        Level::Avx512 | Level::Avx2 => unsafe {
+            avx2::cost_bands_avx2(left, right, bands, range_max, worst, ad, out)
+        },
+        Level::Scalar => scalar::cost_bands_scalar(left, right, bands, range_max, worst, ad, out),
     }
 }
 

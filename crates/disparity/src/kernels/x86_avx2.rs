@@ -4,7 +4,7 @@
 
 use std::arch::x86_64::*;
 
-use super::layout::{feasible, padded_lanes, AdRows, PathIn, Samples, Window, BT_PAD, JUNK_COST};
+use super::layout::{feasible, padded_lanes, AdRows, BandRow, PathIn, Samples, Window, BT_PAD, JUNK_COST};
 use super::scalar::{
     bt_fill_in_order, census_span_scalar, cost_row_u8_scalar, keep_smaller_scalar, pad_window_rows,
 };
@@ -221,9 +221,7 @@ unsafe fn add_ad_avx2(
     }
 }
 
-/// [`super::cost_row`] for AVX2 machines: the census Hamming distances 16 disparities per step
-/// ([`hamming_block_avx2`]) where all 16 right pixels are inside the row, the scalar reference's
-/// step elsewhere (the ends of the feasible range), then the AD term ([`add_ad_avx2`]).
+/// [`super::cost_row`] for AVX2 machines: [`cost_pixel_avx2`] for each pixel.
 ///
 /// # Safety
 /// The CPU must have AVX2 and POPCNT; lengths as checked by [`super::cost_row`].
@@ -237,38 +235,90 @@ pub(super) unsafe fn cost_row_avx2(
     ad: Option<AdRows<'_>>,
     out: &mut [u16],
 ) {
-    let (width, lanes) = (left.len(), padded_lanes(nd));
+    let lanes = padded_lanes(nd);
     for (x, costs) in out.chunks_exact_mut(lanes).enumerate() {
-        let l = left[x];
-        let (lo, hi, first) = feasible(x, width, min_disparity, nd);
-        costs[..lo].fill(worst);
-        // Disparity index k has its right pixel at first - k.
-        let scalar = |costs: &mut [u16], k: usize| {
-            costs[k] = (l ^ right[(first - k as i64) as usize]).count_ones() as u16;
-        };
-        let mut k = lo;
-        while k < hi && !k.is_multiple_of(16) {
-            scalar(costs, k);
-            k += 1;
-        }
-        while k + 16 <= hi {
-            // SAFETY: k..k + 16 are feasible, so right pixels first - k - 15 ..= first - k are
-            // inside the row; entries k..k + 16 are this pixel's (k + 16 <= hi <= lanes).
-            let block = hamming_block_avx2(l, right.as_ptr().add((first - k as i64) as usize - 15));
-            _mm256_storeu_si256(costs.as_mut_ptr().add(k).cast(), block);
-            k += 16;
-        }
-        while k < hi {
-            scalar(costs, k);
-            k += 1;
-        }
-        costs[hi..nd].fill(worst);
-        costs[nd..].fill(JUNK_COST);
-        if let Some(ad) = &ad {
-            // SAFETY: `lo..hi` are the feasible disparities of `x`, whose `lanes` entries start
-            // at `costs` (`out.len() == width * lanes` was checked).
-            add_ad_avx2(ad, costs.as_mut_ptr(), x, width, first, lo, hi);
-        }
+        // SAFETY: as checked by the caller; `costs` is pixel `x`'s `lanes` entries.
+        cost_pixel_avx2(left, right, x, min_disparity, nd, worst, &ad, costs);
+    }
+}
+
+/// [`super::cost_bands`] for AVX2 machines: [`cost_pixel_avx2`] for each pixel over its own
+/// band.
+///
+/// # Safety
+/// The CPU must have AVX2 and POPCNT; lengths as checked by [`super::cost_bands`].
+#[target_feature(enable = "avx2,popcnt")]
+pub(super) unsafe fn cost_bands_avx2(
+    left: &[u64],
+    right: &[u64],
+    bands: BandRow<'_>,
+    range_max: i32,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u16],
+) {
+    for x in 0..left.len() {
+        let (o, n) = (bands.offsets[x], usize::from(bands.lanes[x]));
+        let nd = ((range_max - o) as usize).min(n);
+        let start = bands.starts[x];
+        // SAFETY: `starts[x] + lanes[x] <= out.len()`, `lanes[x]` a multiple of 16 and
+        // `offsets[x] < range_max` (checked by the caller).
+        cost_pixel_avx2(left, right, x, o, nd, worst, &ad, &mut out[start..start + n]);
+    }
+}
+
+/// Pixel `x`'s costs from disparity `min_disparity` into `costs` (as
+/// [`super::scalar::cost_bands_scalar`]'s pixel): the census Hamming distances 16 disparities
+/// per step ([`hamming_block_avx2`]) where all 16 right pixels are inside the row, the scalar
+/// reference's step elsewhere (the ends of the feasible range), `worst` where the right pixel is
+/// outside the row, [`JUNK_COST`] past `nd`, then the AD term ([`add_ad_avx2`]).
+///
+/// # Safety
+/// The CPU must have AVX2 and POPCNT; `costs.len()` is a multiple of 16 and at least `nd`, the BT
+/// rows (if any) are padded by [`BT_PAD`].
+#[inline]
+#[target_feature(enable = "avx2,popcnt")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn cost_pixel_avx2(
+    left: &[u64],
+    right: &[u64],
+    x: usize,
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: &Option<AdRows<'_>>,
+    costs: &mut [u16],
+) {
+    let width = left.len();
+    let l = left[x];
+    let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+    costs[..lo].fill(worst);
+    // Disparity index k has its right pixel at first - k.
+    let scalar = |costs: &mut [u16], k: usize| {
+        costs[k] = (l ^ right[(first - k as i64) as usize]).count_ones() as u16;
+    };
+    let mut k = lo;
+    while k < hi && !k.is_multiple_of(16) {
+        scalar(costs, k);
+        k += 1;
+    }
+    while k + 16 <= hi {
+        // SAFETY: k..k + 16 are feasible, so right pixels first - k - 15 ..= first - k are
+        // inside the row; entries k..k + 16 are this pixel's (k + 16 <= hi <= costs.len()).
+        let block = hamming_block_avx2(l, right.as_ptr().add((first - k as i64) as usize - 15));
+        _mm256_storeu_si256(costs.as_mut_ptr().add(k).cast(), block);
+        k += 16;
+    }
+    while k < hi {
+        scalar(costs, k);
+        k += 1;
+    }
+    costs[hi..nd].fill(worst);
+    costs[nd..].fill(JUNK_COST);
+    if let Some(ad) = ad {
+        // SAFETY: `lo..hi` are the feasible disparities of `x`, whose entries start at `costs`
+        // (a multiple of 16 long, so every 16-entry block below `hi` is inside it).
+        add_ad_avx2(ad, costs.as_mut_ptr(), x, width, first, lo, hi);
     }
 }
 
