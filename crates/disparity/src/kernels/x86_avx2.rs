@@ -4,10 +4,11 @@
 
 use std::arch::x86_64::*;
 
-use super::layout::{feasible, padded_lanes, AdRows, BandRow, PathIn, Samples, Window, BT_PAD, JUNK_COST};
-use super::scalar::{
-    bt_fill_in_order, census_span_scalar, cost_row_u8_scalar, keep_smaller_scalar, pad_window_rows,
+use super::layout::{
+    feasible, padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, Samples, Window, BT_PAD, JUNK_COST,
+    PAD_U8,
 };
+use super::scalar::{bt_fill_in_order, census_span_scalar, keep_smaller_scalar, pad_window_rows};
 
 /// Minimum of the 16 unsigned 16-bit lanes.
 #[inline]
@@ -107,11 +108,12 @@ pub(super) unsafe fn argmin_avx2(values: &[u16]) -> (u16, usize) {
     (min, k + values[k..].iter().position(|&v| v == min).unwrap_or(0))
 }
 
-/// [`super::cost_row_u8`] for machines without the AVX-512 kernel: the scalar reference
-/// compiled with POPCNT.
+/// [`super::cost_row_u8`] for machines without the AVX-512 kernel (AVX2, or AVX-512 without
+/// VPOPCNTDQ and VBMI): each pixel's `u16` costs by [`cost_pixel_avx2`], narrowed with unsigned
+/// saturation 32 lanes per step (exact: every cost is at most 255), [`PAD_U8`] from `nd` on.
 ///
 /// # Safety
-/// The CPU must have AVX2 and POPCNT.
+/// The CPU must have AVX2 and POPCNT; lengths and bounds as checked by [`super::cost_row_u8`].
 #[target_feature(enable = "avx2,popcnt")]
 pub(super) unsafe fn cost_row_u8_avx2(
     left: &[u64],
@@ -122,7 +124,32 @@ pub(super) unsafe fn cost_row_u8_avx2(
     ad: Option<AdRows<'_>>,
     out: &mut [u8],
 ) {
-    cost_row_u8_scalar(left, right, min_disparity, nd, worst, ad, out)
+    let (wide_lanes, narrow_lanes) = (padded_lanes(nd), padded_lanes_u8(nd));
+    let mut wide = vec![0u16; wide_lanes];
+    for (x, narrow) in out.chunks_exact_mut(narrow_lanes).enumerate() {
+        // SAFETY: as checked by the caller; `wide` holds `padded_lanes(nd)` entries.
+        cost_pixel_avx2(left, right, x, min_disparity, nd, worst, &ad, &mut wide);
+        let (w, n) = (wide.as_ptr(), narrow.as_mut_ptr());
+        let mut k = 0;
+        while k + 32 <= wide_lanes {
+            // SAFETY: entries k..k + 32 of `wide` (wide_lanes) and of `narrow` (narrow_lanes >=
+            // wide_lanes). `packus` interleaves the two registers' 128-bit halves; the permute
+            // puts them back in order.
+            let packed = _mm256_packus_epi16(
+                _mm256_loadu_si256(w.add(k).cast()),
+                _mm256_loadu_si256(w.add(k + 16).cast()),
+            );
+            _mm256_storeu_si256(n.add(k).cast(), _mm256_permute4x64_epi64::<0b11_01_10_00>(packed));
+            k += 32;
+        }
+        if k < wide_lanes {
+            // SAFETY: the last 16 entries of `wide`, into `narrow` (at least as many lanes).
+            let v = _mm256_loadu_si256(w.add(k).cast());
+            let packed = _mm_packus_epi16(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
+            _mm_storeu_si128(n.add(k).cast(), packed);
+        }
+        narrow[nd..].fill(PAD_U8);
+    }
 }
 
 /// AVX2 [`super::keep_smaller`]: 16 lanes per step (`best` takes the unsigned minimum, `index`
