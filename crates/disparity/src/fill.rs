@@ -107,10 +107,17 @@ fn min_valid(a: f32, b: f32) -> f32 {
 
 /// The median of the non-NaN values (mean of the middle two for an even count); NaN if none.
 fn median_valid(values: &[f32; 8]) -> f32 {
-    let mut v: Vec<f32> = values.iter().copied().filter(|v| !v.is_nan()).collect();
-    if v.is_empty() {
+    // On the stack: this runs for every filled pixel.
+    let mut valid = [0f32; 8];
+    let mut n = 0;
+    for &d in values.iter().filter(|d| !d.is_nan()) {
+        valid[n] = d;
+        n += 1;
+    }
+    if n == 0 {
         return f32::NAN;
     }
+    let v = &mut valid[..n];
     v.sort_unstable_by(f32::total_cmp);
     let n = v.len();
     if n % 2 == 1 {
