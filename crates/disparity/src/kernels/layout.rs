@@ -90,6 +90,17 @@ pub(crate) struct BandRow<'a> {
     pub starts: &'a [usize],
 }
 
+impl BandRow<'_> {
+    /// Pixel `x`'s band: its first disparity, how many of its lanes are disparities below
+    /// `range_max` (the rest are padding), and its entries in the row's band-after-band layout.
+    #[inline(always)]
+    pub(crate) fn band(&self, x: usize, range_max: i32) -> (i32, usize, std::ops::Range<usize>) {
+        let (offset, lanes) = (self.offsets[x], usize::from(self.lanes[x]));
+        let real = ((range_max - offset) as usize).min(lanes);
+        (offset, real, self.starts[x]..self.starts[x] + lanes)
+    }
+}
+
 /// One path's input for a step: the previous pixel's padded path-cost vector and its minimum,
 /// and the large-jump penalty for this step. A path that starts here uses an all-zero `prev`
 /// with minimum 0, which makes the step return the matching cost itself.

@@ -92,9 +92,8 @@ pub(crate) fn cost_bands_scalar(
     out: &mut [u16],
 ) {
     for x in 0..left.len() {
-        let (o, n) = (bands.offsets[x], usize::from(bands.lanes[x]));
-        let nd = ((range_max - o) as usize).min(n);
-        cost_pixel_scalar(left, right, x, o, nd, worst, ad, &mut out[bands.starts[x]..bands.starts[x] + n]);
+        let (o, nd, entries) = bands.band(x, range_max);
+        cost_pixel_scalar(left, right, x, o, nd, worst, ad, &mut out[entries]);
     }
 }
 

@@ -285,12 +285,10 @@ pub(super) unsafe fn cost_bands_avx2(
     out: &mut [u16],
 ) {
     for x in 0..left.len() {
-        let (o, n) = (bands.offsets[x], usize::from(bands.lanes[x]));
-        let nd = ((range_max - o) as usize).min(n);
-        let start = bands.starts[x];
+        let (o, nd, entries) = bands.band(x, range_max);
         // SAFETY: `starts[x] + lanes[x] <= out.len()`, `lanes[x]` a multiple of 16 and
         // `offsets[x] < range_max` (checked by the caller).
-        cost_pixel_avx2(left, right, x, o, nd, worst, &ad, &mut out[start..start + n]);
+        cost_pixel_avx2(left, right, x, o, nd, worst, &ad, &mut out[entries]);
     }
 }
 

@@ -329,8 +329,7 @@ pub(super) unsafe fn cost_bands_avx512(
 ) {
     let consts = CostConsts::new(worst, &ad);
     for x in 0..left.len() {
-        let (o, n) = (bands.offsets[x], usize::from(bands.lanes[x]));
-        let nd = (range_max - o) as usize;
+        let (o, nd, entries) = bands.band(x, range_max);
         // SAFETY: `starts[x] + lanes[x] <= out.len()` and `offsets[x] < range_max` (checked by
         // the caller).
         cost_pixel_avx512!(
@@ -338,11 +337,11 @@ pub(super) unsafe fn cost_bands_avx512(
             right,
             x,
             o,
-            nd.min(n),
-            n,
+            nd,
+            entries.len(),
             &consts,
             &ad,
-            out.as_mut_ptr().add(bands.starts[x]),
+            out.as_mut_ptr().add(entries.start),
         );
     }
 }
