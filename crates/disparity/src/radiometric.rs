@@ -15,25 +15,31 @@ pub(crate) fn reduced_range(range: crate::DisparityRange, factor: usize) -> crat
 }
 
 /// The `factor × factor` box average of `image` (partial blocks at the right and bottom are
-/// dropped), 8-bit samples stored ×257 when the input is 8-bit.
+/// dropped), 8-bit samples stored ×257 when the input is 8-bit. Rows in parallel; each output
+/// row sums its input rows column by column first, so the inner loops have no divisions.
 pub(crate) fn downsample(image: &GrayImage, factor: usize) -> GrayImage {
     let (w, h) = image.size();
+    let factor = factor.max(1);
     let (cw, ch) = (w / factor, h / factor);
     let byte_scaled = crate::census::is_byte_scaled(image);
     let n = (factor * factor) as u64;
-    GrayImage::from_fn(cw, ch, |x, y| {
-        let mut sum = 0u64;
+    // The rounded mean `(s + n / 2) / n`, by a shift where `n` is a power of two (the usual
+    // factors 2 and 4): the same integer, without a division per pixel.
+    let mean = |s: u64| if n.is_power_of_two() { (s + n / 2) >> n.trailing_zeros() } else { (s + n / 2) / n };
+    let mut data = vec![0u16; cw * ch];
+    data.par_chunks_mut(cw.max(1)).enumerate().for_each(|(y, out)| {
+        let mut columns = vec![0u64; cw * factor];
         for yy in y * factor..(y + 1) * factor {
-            for &v in &image.row(yy)[x * factor..(x + 1) * factor] {
-                sum += u64::from(v);
+            for (c, &v) in columns.iter_mut().zip(image.row(yy)) {
+                *c += u64::from(v);
             }
         }
-        if byte_scaled {
-            (((sum / 257 + n / 2) / n) * 257) as u16
-        } else {
-            ((sum + n / 2) / n) as u16
+        for (o, block) in out.iter_mut().zip(columns.chunks_exact(factor)) {
+            let sum: u64 = block.iter().sum();
+            *o = if byte_scaled { (mean(sum / 257) * 257) as u16 } else { mean(sum) as u16 };
         }
-    })
+    });
+    GrayImage::from_vec(cw, ch, data).expect("cw * ch samples")
 }
 
 /// The largest [`radiometric_difference`] (8-bit grey levels) at which AD-census keeps its

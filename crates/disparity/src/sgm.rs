@@ -126,16 +126,11 @@ fn gradient_energy(image: &GrayImage) -> f64 {
         .into_par_iter()
         .map(|y| {
             let (row, below) = (image.row(y), image.row(y + 1));
-            let mut sum = 0u64;
-            for x in 0..w {
-                let dy = i64::from(below[x]) - i64::from(row[x]);
-                sum += (dy * dy) as u64;
-                if x + 1 < w {
-                    let dx = i64::from(row[x + 1]) - i64::from(row[x]);
-                    sum += (dx * dx) as u64;
-                }
-            }
-            sum as f64
+            // A squared step of 16-bit samples fits in u32; the integer sum is order-free.
+            let square = |a: u16, b: u16| u64::from(u32::from(a.abs_diff(b)).pow(2));
+            let vertical: u64 = row.iter().zip(below).map(|(&a, &b)| square(a, b)).sum();
+            let horizontal: u64 = row.windows(2).map(|p| square(p[0], p[1])).sum();
+            (vertical + horizontal) as f64
         })
         .collect();
     rows.iter().sum::<f64>() / ((w * (h - 1) + (w - 1) * (h - 1)) as f64)
@@ -179,29 +174,60 @@ fn match_downscaled(
 
     let scale = f as f32;
     let (lo, hi) = (range.min as f32, (range.max - 1) as f32);
-    let source =
-        |x: usize, y: usize| (x / f).min(small_width - 1) + (y / f).min(small_height - 1) * small_width;
+    // Full-resolution pixel x (row y) comes from reduced pixel min(x / f, small_width - 1)
+    // (row min(y / f, small_height - 1)): each reduced row is widened once into the first of its
+    // f rows, which the others copy.
+    let widen = |y: usize, row: &mut [f32], status_row: &mut [u8]| {
+        let at = (y / f).min(small_height - 1) * small_width;
+        let (small_row, small_status) = (
+            &small.disparity.as_slice()[at..at + small_width],
+            &small.status.as_slice()[at..at + small_width],
+        );
+        let range_end = crate::PixelStatus::RangeEnd as u8;
+        let run = |x: usize| if x + 1 < small_width { f } else { usize::MAX };
+        let (mut x, mut sx) = (0, 0);
+        while x < width {
+            let end = x.saturating_add(run(sx)).min(width);
+            let v = small_row[sx] * scale;
+            let (d, s) = if v.is_nan() || (lo..=hi).contains(&v) {
+                (v, small_status[sx])
+            } else {
+                (f32::NAN, range_end)
+            };
+            row[x..end].fill(d);
+            status_row[x..end].fill(s);
+            (x, sx) = (end, sx + 1);
+        }
+    };
     let mut disparity = DisparityMap::new(width, height, f32::NAN);
     let mut status = Image::new(width, height, 0u8);
-    let range_end = crate::PixelStatus::RangeEnd as u8;
     disparity
         .as_mut_slice()
-        .par_chunks_exact_mut(width)
-        .zip(status.as_mut_slice().par_chunks_exact_mut(width))
+        .par_chunks_exact_mut(width * f)
+        .zip(status.as_mut_slice().par_chunks_exact_mut(width * f))
         .enumerate()
-        .for_each(|(y, (row, status_row))| {
-            for (x, (d, s)) in row.iter_mut().zip(status_row.iter_mut()).enumerate() {
-                let at = source(x, y);
-                let v = small.disparity.as_slice()[at] * scale;
-                *s = small.status.as_slice()[at];
-                if v.is_nan() || (lo..=hi).contains(&v) {
-                    *d = v;
-                } else {
-                    *s = range_end;
-                }
+        .for_each(|(block, (rows, status_rows))| {
+            let (first, rest) = rows.split_at_mut(width);
+            let (first_status, rest_status) = status_rows.split_at_mut(width);
+            widen(block * f, first, first_status);
+            for (row, status_row) in rest.chunks_exact_mut(width).zip(rest_status.chunks_exact_mut(width)) {
+                row.copy_from_slice(first);
+                status_row.copy_from_slice(first_status);
             }
         });
+    // The rows below the last whole block of f (height not a multiple of f) repeat the last
+    // reduced row.
+    let done = height / f * f;
+    for y in done..height {
+        let (row, status_row) = (
+            &mut disparity.as_mut_slice()[y * width..(y + 1) * width],
+            &mut status.as_mut_slice()[y * width..(y + 1) * width],
+        );
+        widen(y, row, status_row);
+    }
     let confidence = small.confidence.as_ref().map(|c| {
+        let source =
+            |x: usize, y: usize| (x / f).min(small_width - 1) + (y / f).min(small_height - 1) * small_width;
         let mut out = Image::new(width, height, 0.0f32);
         for (i, v) in out.as_mut_slice().iter_mut().enumerate() {
             *v = c.as_slice()[source(i % width, i / width)];
