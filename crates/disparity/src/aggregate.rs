@@ -228,7 +228,12 @@ impl PathCost for u8 {
 /// Whether the passes run on 8-bit path costs: only where the 8-bit kernel is vectorised
 /// (AVX-512) and every path cost fits.
 fn use_u8(inputs: &Inputs<'_>) -> bool {
-    features().level.avx512() && fits(inputs.worst, inputs.p1, inputs.p2.max())
+    u8_passes(inputs.worst, inputs.p1, inputs.p2.max())
+}
+
+/// [`use_u8`] from the matching cost's largest value and the penalties.
+pub(crate) fn u8_passes(worst: u16, p1: u16, max_p2: u16) -> bool {
+    features().level.avx512() && fits(worst, p1, max_p2)
 }
 
 /// What the aggregation reads.
@@ -256,6 +261,10 @@ pub(crate) struct StripPlan {
     pub rows: usize,
     /// Rows below a strip over which the backward pass warms up its paths.
     pub overlap: usize,
+    /// Whether the `u16` passes keep each strip row's matching costs for the other pass
+    /// (`W × padded_lanes(D)` entries per row in [`aggregate_and_select`]'s `costs`), so every
+    /// cost row is computed once instead of once per pass.
+    pub shared_costs: bool,
 }
 
 /// Bytes of path state one pass holds (for the memory plan).
@@ -277,9 +286,11 @@ pub(crate) fn pass_state_bytes(width: usize, nd: usize, paths: PathCount) -> usi
 }
 
 /// One row of the shared output: the path sums and the disparities, and whether one pass has
-/// already stored its sums.
+/// already stored its sums (and, with shared costs, the row's matching costs).
 struct RowSlot<'a> {
     sum: &'a mut [u16],
+    /// The row's `u16` matching costs, made by the first pass to reach the row.
+    cost: Option<&'a mut [u16]>,
     disparity: &'a mut [f32],
     visited: bool,
 }
@@ -294,11 +305,13 @@ enum Pass {
 
 /// Aggregates all path directions strip by strip (see the module documentation) and selects
 /// every row's disparities into `disparity`. `volume` holds at least `plan.rows` rows of sums
-/// (`[y][x][d]`, any initial contents).
+/// (`[y][x][d]`, any initial contents); `costs` as many rows of `W × padded_lanes(D)` matching
+/// costs when [`StripPlan::shared_costs`] (and the passes run in `u16`), else it may be empty.
 pub(crate) fn aggregate_and_select(
     inputs: &Inputs<'_>,
     plan: StripPlan,
     volume: &mut [u16],
+    costs: &mut [u16],
     disparity: &mut [f32],
 ) {
     let (width, height) = inputs.image.size();
@@ -307,31 +320,42 @@ pub(crate) fn aggregate_and_select(
     debug_assert!(volume.len() >= strip_rows.min(height) * width * nd);
     debug_assert_eq!(disparity.len(), width * height);
     if use_u8(inputs) {
-        aggregate_strips::<u8>(inputs, strip_rows, plan.overlap, volume, disparity);
+        aggregate_strips::<u8>(inputs, strip_rows, plan.overlap, volume, &mut [], disparity);
     } else {
-        aggregate_strips::<u16>(inputs, strip_rows, plan.overlap, volume, disparity);
+        let cost_row = width * padded_lanes(nd);
+        let costs = if plan.shared_costs { costs } else { &mut [][..] };
+        debug_assert!(costs.is_empty() || costs.len() >= strip_rows.min(height) * cost_row);
+        aggregate_strips::<u16>(inputs, strip_rows, plan.overlap, volume, costs, disparity);
     }
 }
 
 /// [`aggregate_and_select`] with path costs of type `T`.
+/// With `costs` (non-empty, `u16` passes only) each strip row's matching costs are kept for the
+/// second pass.
 fn aggregate_strips<T: PathCost>(
     inputs: &Inputs<'_>,
     strip_rows: usize,
     overlap: usize,
     volume: &mut [u16],
+    costs: &mut [u16],
     disparity: &mut [f32],
 ) {
     let (width, height) = inputs.image.size();
     let nd = inputs.range.count();
+    let cost_row = width * padded_lanes(nd);
     let mut forward = PassState::<T>::new(inputs, Pass::Forward);
     let mut backward = PassState::<T>::new(inputs, Pass::Backward);
     for (strip, disparity) in disparity.chunks_mut(strip_rows * width).enumerate() {
         let y0 = strip * strip_rows;
         let y1 = y0 + disparity.len() / width.max(1);
+        let mut cost_rows = costs.chunks_mut(cost_row.max(1));
         let rows: Vec<Mutex<RowSlot<'_>>> = volume[..(y1 - y0) * width * nd]
             .chunks_mut(width * nd)
             .zip(disparity.chunks_mut(width))
-            .map(|(sum, disparity)| Mutex::new(RowSlot { sum, disparity, visited: false }))
+            .map(|(sum, disparity)| {
+                let cost = cost_rows.next();
+                Mutex::new(RowSlot { sum, cost, disparity, visited: false })
+            })
             .collect();
         let warm_end = y1.saturating_add(overlap).min(height);
         let rows = &rows;
@@ -506,7 +530,10 @@ fn run_rows_generic<T: PathCost>(
         }
         let mut slot = rows[y - y0].lock().unwrap_or_else(|e| e.into_inner());
         let accumulate = slot.visited;
-        step_row(state, inputs, y, level, slot.sum, accumulate);
+        let RowSlot { sum, cost, .. } = &mut *slot;
+        // The second pass at a row with shared costs reads them; the first makes them.
+        let shared = cost.as_deref_mut().map(|c| (c, accumulate));
+        step_row_with(state, inputs, y, level, sum, accumulate, None, shared);
         if accumulate {
             // Both passes are in: the row's sums are final.
             let RowSlot { sum, disparity, .. } = &mut *slot;
@@ -572,7 +599,7 @@ fn stream_rows_generic<T: PathCost>(
             }
             let trailing =
                 held.map(|_| Trailing { cost: &held_cost[..], p2: &p2_row[..], sum: &mut *held_sum });
-            step_row_with(state, inputs, y, level, sum, false, trailing);
+            step_row_with(state, inputs, y, level, sum, false, trailing, None);
             if let Some(held_y) = held {
                 let out = &mut disparity[(held_y - y0) * width..(held_y - y0 + 1) * width];
                 select_row(held_sum, width, nd, inputs.selection, &mut state.scratch, out);
@@ -643,12 +670,15 @@ fn step_row<T: PathCost>(
     sum: &mut [u16],
     accumulate: bool,
 ) {
-    step_row_with(state, inputs, y, level, sum, accumulate, None);
+    step_row_with(state, inputs, y, level, sum, accumulate, None, None);
 }
 
 /// [`step_row`], with the ← path of an earlier row (`trailing`) run in the same loop: only for
-/// stored rows through the whole-row kernel ([`PathCost::has_row`]).
+/// stored rows through the whole-row kernel ([`PathCost::has_row`]). With `shared = Some((row,
+/// ready))` (`u16` passes) the row's `u16` matching costs live in `row`: already made by the
+/// other pass when `ready`, made there now otherwise.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn step_row_with<T: PathCost>(
     state: &mut PassState<T>,
     inputs: &Inputs<'_>,
@@ -657,6 +687,7 @@ fn step_row_with<T: PathCost>(
     sum: &mut [u16],
     accumulate: bool,
     trailing: Option<Trailing<'_, T>>,
+    shared: Option<(&mut [u16], bool)>,
 ) {
     let width = inputs.image.width();
     let nd = inputs.range.count();
@@ -671,16 +702,34 @@ fn step_row_with<T: PathCost>(
     state.prev_y = Some(y);
     let row = inputs.image.row(y);
     let prev_row = inputs.image.row(prev_y);
-    let ad = inputs.ad.map(|(left, right, weight, cap)| {
-        state.bt_left.fill(left.row(y), false);
-        state.bt_right.fill(right.row(y), true);
-        AdRows { left: &state.bt_left, right: &state.bt_right, weight, cap }
-    });
-    T::make_costs(inputs, y, ad, &mut state.cost, &mut state.cost_narrow);
+    let PassState {
+        cost,
+        cost_narrow,
+        bt_left,
+        bt_right,
+        vertical,
+        diag_a,
+        diag_b,
+        horizontal,
+        zero,
+        p2_rows,
+        ..
+    } = state;
+    let (wide, ready) = match shared {
+        Some((row, ready)) => (row, ready),
+        None => (&mut cost[..], false),
+    };
+    if !ready {
+        let ad = inputs.ad.map(|(left, right, weight, cap)| {
+            bt_left.fill(left.row(y), false);
+            bt_right.fill(right.row(y), true);
+            AdRows { left: &*bt_left, right: &*bt_right, weight, cap }
+        });
+        T::make_costs(inputs, y, ad, wide, cost_narrow);
+    }
     let store = !sum.is_empty();
     let has_trailing = trailing.is_some();
-    let PassState { cost, cost_narrow, vertical, diag_a, diag_b, horizontal, zero, p2_rows, .. } = state;
-    let cost = T::costs(level, cost, nd, cost_narrow);
+    let cost = T::costs(level, wide, nd, cost_narrow);
     if store
         && row_kernel(
             level,

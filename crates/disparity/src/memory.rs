@@ -80,7 +80,8 @@ pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPla
         let overlap = tests::STRIPS.get().map_or(OVERLAP_ROWS, |s| s.overlap);
         #[cfg(not(test))]
         let overlap = OVERLAP_ROWS;
-        (StripPlan { rows: height, overlap }, threads, bytes, params.max_memory.is_some_and(|m| bytes > m))
+        let strips = StripPlan { rows: height, overlap, shared_costs: false };
+        (strips, threads, bytes, params.max_memory.is_some_and(|m| bytes > m))
     } else {
         let fixed = fixed.saturating_add(pass_state_bytes(width, nd, params.paths).saturating_mul(2));
         let per_row = row_bytes.saturating_add(ROW_SLOT_BYTES);
@@ -98,9 +99,28 @@ pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPla
         let overlap = tuning("STEREO_DISPARITY_OVERLAP").unwrap_or(OVERLAP_ROWS);
         #[cfg(test)]
         let (rows, overlap) = tests::STRIPS.get().map_or((rows, overlap), |s| (s.rows, s.overlap));
-        (StripPlan { rows, overlap }, 1, fixed.saturating_add(rows.saturating_mul(per_row)), too_large)
+        // The `u16` passes keep each strip row's matching costs for the second pass where that
+        // fits the budget next to the strips planned above (so the strips, and the result, do
+        // not depend on it).
+        let cost_row = width.saturating_mul(crate::kernels::layout::padded_lanes(nd)).saturating_mul(2);
+        let strip_bytes = rows.saturating_mul(per_row);
+        let shared_bytes = rows.saturating_mul(cost_row);
+        let u8_passes = crate::aggregate::u8_passes(worst_cost(params), params.p1, params.p2);
+        let with_costs = fixed.saturating_add(strip_bytes).saturating_add(shared_bytes);
+        let shared_costs = !u8_passes && !matches!(params.max_memory, Some(m) if with_costs > m);
+        #[cfg(test)]
+        let shared_costs = tests::STRIPS.get().map_or(shared_costs, |s| s.shared_costs && !u8_passes);
+        let bytes =
+            fixed.saturating_add(strip_bytes).saturating_add(if shared_costs { shared_bytes } else { 0 });
+        (StripPlan { rows, overlap, shared_costs }, 1, bytes, too_large)
     };
     MemoryPlan { strips, stream_threads, bytes, too_large }
+}
+
+/// The largest matching cost of `params`' cost (the aggregation's `worst`).
+fn worst_cost(params: &SgmParams) -> u16 {
+    let census_bits = (params.census.width * params.census.height).saturating_sub(1) as u32;
+    crate::cost::infeasible_cost(census_bits, params.matching_cost)
 }
 
 /// A tuning override from the environment (for measurements only).
@@ -114,8 +134,9 @@ pub(crate) mod tests {
     use std::cell::Cell;
 
     thread_local! {
-        /// Forces the strip plan of [`plan`] on this thread: two-pass strip rows and overlap, or
-        /// single-pass thread count (`rows`) and overlap.
+        /// Forces the strip plan of [`plan`] on this thread: two-pass strip rows, overlap and
+        /// shared costs (where the passes run in `u16`), or single-pass thread count (`rows`)
+        /// and overlap.
         pub(crate) static STRIPS: Cell<Option<StripPlan>> = const { Cell::new(None) };
     }
 

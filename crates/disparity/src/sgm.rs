@@ -6,6 +6,7 @@ use crate::census::census_transform_tolerant;
 use crate::confidence::census_confidence;
 use crate::cost::infeasible_cost;
 use crate::hierarchical::{aggregate_bands, stream_bands, Bands};
+use crate::kernels::layout::padded_lanes;
 use crate::memory;
 use crate::post::{Adaptation, SearchReport, SgmOutput};
 use crate::radiometric::{blockiness, CoarseMatch};
@@ -632,9 +633,18 @@ pub(crate) fn aggregate_census(
     } else {
         // The only volume: one strip of aggregated path costs (every entry is written before it
         // is read, and the strips reuse it).
-        let len = plan.strips.rows.min(height) * width * nd;
-        let mut volume = ZeroedBuffer::<u16>::new(len);
-        aggregate_and_select(&inputs, plan.strips, volume.as_mut_slice(), disparity.as_mut_slice());
+        let rows = plan.strips.rows.min(height);
+        let mut volume = ZeroedBuffer::<u16>::new(rows * width * nd);
+        // The strip rows' matching costs, kept for the second pass (if the plan shares them).
+        let cost_len = if plan.strips.shared_costs { rows * width * padded_lanes(nd) } else { 0 };
+        let mut costs = ZeroedBuffer::<u16>::new(cost_len);
+        aggregate_and_select(
+            &inputs,
+            plan.strips,
+            volume.as_mut_slice(),
+            costs.as_mut_slice(),
+            disparity.as_mut_slice(),
+        );
     }
     disparity
 }
@@ -835,8 +845,9 @@ mod tests {
             let (left, right) = random_pair(w, h, kind, (seed % nd as u64) as i64 + i64::from(min), seed);
             let fast = sgm(&left, &right, &params).unwrap();
             let reference = crate::reference::sgm_reference(&left, &right, &params);
-            // Strips whose backward warm-up reaches the bottom of the image are exact too.
-            let strips = crate::aggregate::StripPlan { rows: strip_rows, overlap: h };
+            // Strips whose backward warm-up reaches the bottom of the image are exact too, with
+            // the cost rows shared between the passes or made by each.
+            let strips = crate::aggregate::StripPlan { rows: strip_rows, overlap: h, shared_costs: seed % 2 == 0 };
             let striped = crate::memory::tests::with_strips(strips, || sgm(&left, &right, &params).unwrap());
             for (i, ((a, b), c)) in fast.as_slice().iter().zip(reference.as_slice()).zip(striped.as_slice()).enumerate() {
                 proptest::prop_assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "pixel {}: {} vs {}", i, a, b);
@@ -851,10 +862,12 @@ mod tests {
             let params = SgmParams { range: DisparityRange::new(0, nd).unwrap(), ..SgmParams::default() };
             let planned = planned_memory_bytes(w, h, &params);
             let row = 2 * w * nd as usize;
-            // Census (16 B/px), disparities (8 B/px), O(W·D) path state, and 96.. rows of sums.
+            // Census (16 B/px), disparities (8 B/px), O(W·D) path state, and 96.. rows of sums
+            // (and as many of matching costs where the passes share them: `u16` passes; nd is a
+            // multiple of 16 here).
             assert!(planned >= 24 * w * h + 96 * row.min(row * h / 96), "{w}x{h}/{nd}: {planned}");
             assert!(
-                planned <= 25 * w * h + (16 << 20).max(100 * row) + 64 * w * nd as usize,
+                planned <= 25 * w * h + 2 * (16 << 20).max(100 * row) + 64 * w * nd as usize,
                 "{w}x{h}/{nd}: {planned}"
             );
             let bounded = SgmParams { max_memory: Some(planned / 2 + 24 * w * h), ..params.clone() };
