@@ -260,6 +260,35 @@ pub fn percentile_unsorted(values: &mut [f64], p: f64) -> Option<f64> {
     Some(at_lo + frac * (at_hi - at_lo))
 }
 
+/// [`percentile`] at each of `ps` of unsorted `values`, in one pass of selections: the ranks
+/// are found in ascending order, each in the part of `values` above the previous one (so the
+/// selections shrink), in `f32` (the samples' own type; the interpolation is in `f64` as in
+/// [`percentile`], so the results are the same). The order of `values` changes.
+fn percentiles_unsorted<const N: usize>(values: &mut [f32], ps: [f64; N]) -> [Option<f64>; N] {
+    let n = values.len();
+    let mut out = [None; N];
+    if n == 0 {
+        return out;
+    }
+    let mut order: [usize; N] = std::array::from_fn(|i| i);
+    let position = |p: f64| (n - 1) as f64 * p.clamp(0.0, 100.0) / 100.0;
+    order.sort_by(|&a, &b| position(ps[a]).total_cmp(&position(ps[b])));
+    // values[..start] hold the `start` smallest samples.
+    let mut start = 0;
+    for i in order {
+        let h = position(ps[i]);
+        let lo = h.floor() as usize;
+        let frac = h - lo as f64;
+        // `lo >= start`: the positions ascend.
+        let (_, &mut at_lo, _) = values[start..].select_nth_unstable_by(lo - start, f32::total_cmp);
+        start = lo;
+        // The next rank is the smallest sample above the `lo`-th.
+        let at_hi = values[lo + 1..].iter().copied().min_by(f32::total_cmp).unwrap_or(at_lo);
+        out[i] = Some(f64::from(at_lo) + frac * (f64::from(at_hi) - f64::from(at_lo)));
+    }
+    out
+}
+
 /// Statistics of the valid samples of a map: a depth map ([`DepthStats`], metres, valid = finite
 /// and > 0) or a disparity map ([`DisparityStats`], pixels, valid = finite, negative included).
 /// Values are `None` when no pixel is valid. Percentiles (and the median) interpolate linearly
@@ -299,27 +328,30 @@ impl MapStats {
 
     fn of_valid(image: &Image<f32>, valid: impl Fn(f32) -> bool) -> Self {
         let (width, height) = image.size();
-        let mut values: Vec<f64> =
-            image.as_slice().iter().copied().filter(|&v| valid(v)).map(f64::from).collect();
+        let mut values: Vec<f32> = image.as_slice().iter().copied().filter(|&v| valid(v)).collect();
         let total_pixels = width * height;
         let valid_pixels = values.len();
         let density_percent =
             if total_pixels == 0 { 0.0 } else { 100.0 * valid_pixels as f64 / total_pixels as f64 };
-        let mean = (valid_pixels > 0).then(|| values.iter().sum::<f64>() / valid_pixels as f64);
+        let mean = (valid_pixels > 0)
+            .then(|| values.iter().map(|&v| f64::from(v)).sum::<f64>() / valid_pixels as f64);
+        let min = values.iter().copied().min_by(f32::total_cmp).map(f64::from);
+        let max = values.iter().copied().max_by(f32::total_cmp).map(f64::from);
+        // Selection instead of sorting: a sort of every valid pixel cost more than the
+        // triangulation itself.
+        let [median, p5, p95] = percentiles_unsorted(&mut values, [50.0, 5.0, 95.0]);
         MapStats {
             width,
             height,
             valid_pixels,
             total_pixels,
             density_percent,
-            min: values.iter().copied().min_by(f64::total_cmp),
-            max: values.iter().copied().max_by(f64::total_cmp),
+            min,
+            max,
             mean,
-            // Selection instead of sorting: a sort of every valid pixel cost more than the
-            // triangulation itself.
-            median: percentile_unsorted(&mut values, 50.0),
-            p5: percentile_unsorted(&mut values, 5.0),
-            p95: percentile_unsorted(&mut values, 95.0),
+            median,
+            p5,
+            p95,
         }
     }
 }
@@ -527,6 +559,40 @@ mod tests {
             }
         }
         assert_eq!(percentile_unsorted(&mut [], 50.0), None);
+    }
+
+    #[test]
+    fn percentiles_in_one_pass_equal_sorted_ones() {
+        // Repeats, signed zeros, several lengths, percentiles in any order.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for n in [1usize, 2, 3, 4, 10, 21, 101, 1000, 4097] {
+            let values: Vec<f32> = (0..n)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    match state % 7 {
+                        0 => -0.0,
+                        1 => 0.0,
+                        _ => (state % 61) as f32 * 0.37 - 5.0,
+                    }
+                })
+                .collect();
+            let mut sorted: Vec<f64> = values.iter().map(|&v| f64::from(v)).collect();
+            sorted.sort_unstable_by(f64::total_cmp);
+            for ps in [[50.0, 5.0, 95.0], [0.0, 100.0, 50.0], [95.0, 95.0, 5.0], [33.3, 66.6, 99.9]] {
+                let mut scratch = values.clone();
+                let got = percentiles_unsorted(&mut scratch, ps);
+                for (p, g) in ps.iter().zip(got) {
+                    assert_eq!(
+                        g.map(f64::to_bits),
+                        percentile(&sorted, *p).map(f64::to_bits),
+                        "n {n} p {p} of {ps:?}"
+                    );
+                }
+            }
+        }
+        assert_eq!(percentiles_unsorted(&mut [], [50.0]), [None]);
     }
 
     #[test]
