@@ -46,7 +46,7 @@ pub(super) unsafe fn path_step_avx2<const N: usize>(
     let mut mins = [_mm256_set1_epi16(-1); N];
     let mut k = 0;
     while k < lanes {
-        // SAFETY (pointer accesses below): `k + 16 <= lanes` (lanes is a multiple of 32),
+        // SAFETY (pointer accesses below): `k + 16 <= lanes` (lanes is a multiple of 16),
         // `prev`/`out` have `lanes + 2` entries, and `sum` is written only below `nd`.
         let c = _mm256_loadu_si256(cost.as_ptr().add(k).cast());
         let mut total = _mm256_setzero_si256();
