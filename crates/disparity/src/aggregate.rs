@@ -151,7 +151,8 @@ impl PathCost for u16 {
         sum: &mut [u16],
         accumulate: bool,
     ) -> [u16; N] {
-        kernels::path_step(level, cost, p1, ins, outs, sum, accumulate)
+        // Only from the multiversioned loops below (`run_rows`, `stream_rows`).
+        kernels::path_step_inlined(level, cost, p1, ins, outs, sum, accumulate)
     }
     fn has_row(_: Level, _: usize) -> bool {
         false

@@ -287,6 +287,32 @@ pub(crate) fn path_step<const N: usize>(
     }
 }
 
+/// [`path_step`] for callers compiled once per level (the `multiversion!` loops, which pass their
+/// own level): the AVX2 step is inlined into them instead of called per pixel. Elsewhere use
+/// [`path_step`] (the step's intrinsics would not be inlined into code compiled without AVX2).
+#[inline(always)]
+pub(crate) fn path_step_inlined<const N: usize>(
+    level: Level,
+    cost: &[u16],
+    p1: u16,
+    ins: [PathIn<'_>; N],
+    outs: [&mut [u16]; N],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> [u16; N] {
+    #[cfg(target_arch = "x86_64")]
+    if level == Level::Avx2 {
+        let lanes = cost.len();
+        assert!(lanes.is_multiple_of(LANES) && sum.len() <= lanes);
+        for i in 0..N {
+            assert!(ins[i].prev.len() == lanes + 2 && outs[i].len() == lanes + 2);
+        }
+        // SAFETY: `Level::Avx2` is only chosen when the CPU has AVX2; lengths checked above.
+        return unsafe { avx2::path_step_avx2_body(cost, p1, ins, outs, sum, accumulate) };
+    }
+    path_step(level, cost, p1, ins, outs, sum, accumulate)
+}
+
 /// [`path_step`] on 8-bit path costs (exact when [`layout::fits`] holds for the costs and
 /// penalties: a path cost is `C + (bracket in 0..=P2)`, so it stays within `0..=C_max + P2`, the
 /// bracket is formed before the cost is added and nothing saturates; lanes past the last

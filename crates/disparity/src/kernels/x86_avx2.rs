@@ -18,13 +18,34 @@ pub(super) fn hmin_epu16_256(v: __m256i) -> u16 {
     _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u16
 }
 
-/// AVX2 [`super::path_step`]: 16 disparities per instruction.
+/// AVX2 [`super::path_step`]: 16 disparities per instruction ([`path_step_avx2_body`] compiled
+/// with AVX2).
 ///
 /// # Safety
 /// The CPU must have AVX2; lengths as checked by [`super::path_step`].
 #[inline]
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn path_step_avx2<const N: usize>(
+    cost: &[u16],
+    p1: u16,
+    ins: [PathIn<'_>; N],
+    outs: [&mut [u16]; N],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> [u16; N] {
+    path_step_avx2_body(cost, p1, ins, outs, sum, accumulate)
+}
+
+/// The body of [`path_step_avx2`], for [`super::path_step_inlined`]: not a `#[target_feature]`
+/// function, so it can be inlined into the AVX2 versions of the aggregation loops
+/// (`multiversion!`), which compile it with AVX2. Called once per pixel, the call and its
+/// argument arrays cost about as much as the step itself on short disparity ranges. Called from
+/// code compiled without AVX2 it is still correct, but its intrinsics become calls.
+///
+/// # Safety
+/// The CPU must have AVX2; lengths as checked by [`super::path_step`].
+#[inline(always)]
+pub(super) unsafe fn path_step_avx2_body<const N: usize>(
     cost: &[u16],
     p1: u16,
     ins: [PathIn<'_>; N],
