@@ -260,30 +260,70 @@ pub fn percentile_unsorted(values: &mut [f64], p: f64) -> Option<f64> {
     Some(at_lo + frac * (at_hi - at_lo))
 }
 
-/// [`percentile`] at each of `ps` of unsorted `values`, in one pass of selections: the ranks
-/// are found in ascending order, each in the part of `values` above the previous one (so the
-/// selections shrink), in `f32` (the samples' own type; the interpolation is in `f64` as in
-/// [`percentile`], so the results are the same). The order of `values` changes.
-fn percentiles_unsorted<const N: usize>(values: &mut [f32], ps: [f64; N]) -> [Option<f64>; N] {
+/// [`percentile`] at each of `ps` of unsorted `values`, in `f32` (the samples' own type; the
+/// interpolation is in `f64` as in [`percentile`], so the results are the same). A radix
+/// selection: one pass counts the samples per bucket of the top 16 bits of their order key, so
+/// each rank needed is looked up in a bucket and selected among that bucket's samples alone
+/// (gathered in a second pass), instead of partitioning every sample for every rank.
+fn percentiles_unsorted<const N: usize>(values: &[f32], ps: [f64; N]) -> [Option<f64>; N] {
     let n = values.len();
     let mut out = [None; N];
     if n == 0 {
         return out;
     }
-    let mut order: [usize; N] = std::array::from_fn(|i| i);
+    // Ascending `u32` keys in `f32::total_cmp` order.
+    let key = |v: f32| {
+        let bits = v.to_bits();
+        if bits >> 31 == 1 {
+            !bits
+        } else {
+            bits | 1 << 31
+        }
+    };
+    let mut counts = vec![0u32; 1 << 16];
+    for &v in values {
+        counts[(key(v) >> 16) as usize] += 1;
+    }
+    // Samples below each bucket.
+    let mut below = vec![0usize; 1 << 16];
+    let mut total = 0usize;
+    for (b, &c) in below.iter_mut().zip(&counts) {
+        *b = total;
+        total += c as usize;
+    }
+    let bucket_of = |rank: usize| below.partition_point(|&b| b <= rank) - 1;
     let position = |p: f64| (n - 1) as f64 * p.clamp(0.0, 100.0) / 100.0;
-    order.sort_by(|&a, &b| position(ps[a]).total_cmp(&position(ps[b])));
-    // values[..start] hold the `start` smallest samples.
-    let mut start = 0;
-    for i in order {
-        let h = position(ps[i]);
+    // The ranks asked for (each percentile's and the next), their buckets gathered once each.
+    let ranks: Vec<usize> = ps
+        .iter()
+        .flat_map(|&p| {
+            let lo = position(p).floor() as usize;
+            [lo, (lo + 1).min(n - 1)]
+        })
+        .collect();
+    let mut buckets: Vec<usize> = ranks.iter().map(|&r| bucket_of(r)).collect();
+    buckets.sort_unstable();
+    buckets.dedup();
+    let mut members: Vec<Vec<f32>> =
+        buckets.iter().map(|&b| Vec::with_capacity(counts[b] as usize)).collect();
+    for &v in values {
+        let b = (key(v) >> 16) as usize;
+        if let Ok(i) = buckets.binary_search(&b) {
+            members[i].push(v);
+        }
+    }
+    let mut rank_value = |rank: usize| {
+        let b = bucket_of(rank);
+        let i = buckets.binary_search(&b).expect("every rank's bucket was gathered");
+        let (_, &mut v, _) = members[i].select_nth_unstable_by(rank - below[b], f32::total_cmp);
+        v
+    };
+    for (i, &p) in ps.iter().enumerate() {
+        let h = position(p);
         let lo = h.floor() as usize;
         let frac = h - lo as f64;
-        // `lo >= start`: the positions ascend.
-        let (_, &mut at_lo, _) = values[start..].select_nth_unstable_by(lo - start, f32::total_cmp);
-        start = lo;
-        // The next rank is the smallest sample above the `lo`-th.
-        let at_hi = values[lo + 1..].iter().copied().min_by(f32::total_cmp).unwrap_or(at_lo);
+        let at_lo = rank_value(lo);
+        let at_hi = if lo + 1 < n { rank_value(lo + 1) } else { at_lo };
         out[i] = Some(f64::from(at_lo) + frac * (f64::from(at_hi) - f64::from(at_lo)));
     }
     out
@@ -328,7 +368,7 @@ impl MapStats {
 
     fn of_valid(image: &Image<f32>, valid: impl Fn(f32) -> bool) -> Self {
         let (width, height) = image.size();
-        let mut values: Vec<f32> = image.as_slice().iter().copied().filter(|&v| valid(v)).collect();
+        let values: Vec<f32> = image.as_slice().iter().copied().filter(|&v| valid(v)).collect();
         let total_pixels = width * height;
         let valid_pixels = values.len();
         let density_percent =
@@ -339,7 +379,7 @@ impl MapStats {
         let max = values.iter().copied().max_by(f32::total_cmp).map(f64::from);
         // Selection instead of sorting: a sort of every valid pixel cost more than the
         // triangulation itself.
-        let [median, p5, p95] = percentiles_unsorted(&mut values, [50.0, 5.0, 95.0]);
+        let [median, p5, p95] = percentiles_unsorted(&values, [50.0, 5.0, 95.0]);
         MapStats {
             width,
             height,
@@ -581,8 +621,7 @@ mod tests {
             let mut sorted: Vec<f64> = values.iter().map(|&v| f64::from(v)).collect();
             sorted.sort_unstable_by(f64::total_cmp);
             for ps in [[50.0, 5.0, 95.0], [0.0, 100.0, 50.0], [95.0, 95.0, 5.0], [33.3, 66.6, 99.9]] {
-                let mut scratch = values.clone();
-                let got = percentiles_unsorted(&mut scratch, ps);
+                let got = percentiles_unsorted(&values, ps);
                 for (p, g) in ps.iter().zip(got) {
                     assert_eq!(
                         g.map(f64::to_bits),
@@ -592,7 +631,7 @@ mod tests {
                 }
             }
         }
-        assert_eq!(percentiles_unsorted(&mut [], [50.0]), [None]);
+        assert_eq!(percentiles_unsorted(&[], [50.0]), [None]);
     }
 
     #[test]
