@@ -21,50 +21,64 @@ pub(crate) fn median_3x3(disparity: &DisparityMap) -> DisparityMap {
     out
 }
 
-/// Per-task buffers: the nine window values of each pixel of a row (as order keys), sorted in
-/// place into the median, and how many NaNs each window holds.
+/// Per-task buffers: the median of each interior pixel's window of a row (as an order key) and
+/// how many NaNs each window holds.
 struct MedianScratch {
-    window: [Vec<i32>; 9],
+    medians: Vec<i32>,
     nans: Vec<u8>,
 }
 
 impl MedianScratch {
     fn new(width: usize) -> Self {
-        MedianScratch { window: std::array::from_fn(|_| vec![0; width]), nans: vec![0; width] }
+        MedianScratch { medians: vec![0; width], nans: vec![0; width] }
     }
 
     /// The median of interior pixel `x` (valid after [`full_window_medians`]).
     fn median(&self, x: usize) -> i32 {
-        self.window[4][x]
+        self.medians[x]
     }
 }
 
-/// The exchanges of Paeth's median-of-nine network (as in Devillard's `opt_med9`): afterwards
-/// entry 4 holds the median.
-const MEDIAN9: [(usize, usize); 19] = [
-    (1, 2),
-    (4, 5),
-    (7, 8),
-    (0, 1),
-    (3, 4),
-    (6, 7),
-    (1, 2),
-    (4, 5),
-    (7, 8),
-    (0, 3),
-    (5, 8),
-    (4, 7),
-    (3, 6),
-    (1, 4),
-    (2, 5),
-    (4, 7),
-    (2, 4),
-    (4, 6),
-    (2, 4),
-];
+/// Runs the exchanges of Paeth's median-of-nine network (as in Devillard's `opt_med9`) on the
+/// window entries `$w` (each `B` lanes): afterwards entry 4 holds the median. In every pair the
+/// first entry receives the smaller key. Written out (not a loop over a table) so that the
+/// entries stay in registers.
+macro_rules! median9_network {
+    ($w:ident, $lanes:expr) => {
+        median9_network!(@ $w, $lanes; (1, 2) (4, 5) (7, 8) (0, 1) (3, 4) (6, 7) (1, 2) (4, 5) (7, 8)
+            (0, 3) (5, 8) (4, 7) (3, 6) (1, 4) (2, 5) (4, 7) (2, 4) (4, 6) (2, 4))
+    };
+    (@ $w:ident, $lanes:expr; $(($a:literal, $b:literal))*) => {
+        $(
+            for l in 0..$lanes {
+                let (p, q) = ($w[$a][l], $w[$b][l]);
+                $w[$a][l] = p.min(q);
+                $w[$b][l] = p.max(q);
+            }
+        )*
+    };
+}
 
-/// Medians of all interior 3×3 windows of row `y` (`1 <= y < height - 1`): each exchange of the
-/// network runs over the whole row, so it vectorises across pixels.
+/// The medians (order keys) and NaN counts of the 3×3 windows of the `B` interior pixels
+/// `x + 1 .. x + 1 + B` of the middle row of `rows`: the network runs on `B` pixels at once, its
+/// nine window entries held in registers.
+#[inline(always)]
+fn window_medians<const B: usize>(rows: [&[f32]; 3], x: usize) -> ([i32; B], [u8; B]) {
+    let mut w = [[0i32; B]; 9];
+    let mut nans = [0u8; B];
+    for (i, entry) in w.iter_mut().enumerate() {
+        let row = &rows[i / 3][x + i % 3..x + i % 3 + B];
+        for ((k, nan), &v) in entry.iter_mut().zip(&mut nans).zip(row) {
+            *k = key(v.to_bits());
+            *nan += u8::from(v.is_nan());
+        }
+    }
+    median9_network!(w, B);
+    (w[4], nans)
+}
+
+/// Medians of all interior 3×3 windows of row `y` (`1 <= y < height - 1`), 8 pixels at a time
+/// (one 256-bit register per window entry).
 #[inline(always)]
 fn full_window_medians_generic(
     src: &[f32],
@@ -73,26 +87,20 @@ fn full_window_medians_generic(
     scratch: &mut MedianScratch,
     _level: crate::kernels::Level,
 ) {
+    const B: usize = 8;
     let n = width - 2;
-    scratch.nans[1..=n].fill(0);
-    for (i, w) in scratch.window.iter_mut().enumerate() {
-        let row = &src[(y + i / 3 - 1) * width + i % 3..][..n];
-        for ((k, nan), &v) in w[1..=n].iter_mut().zip(&mut scratch.nans[1..=n]).zip(row) {
-            *k = key(v.to_bits());
-            *nan += u8::from(v.is_nan());
-        }
+    let rows = [y - 1, y, y + 1].map(|r| &src[r * width..(r + 1) * width]);
+    let mut x = 0;
+    while x + B <= n {
+        let (medians, nans) = window_medians::<B>(rows, x);
+        scratch.medians[x + 1..x + 1 + B].copy_from_slice(&medians);
+        scratch.nans[x + 1..x + 1 + B].copy_from_slice(&nans);
+        x += B;
     }
-    for (a, b) in MEDIAN9 {
-        let (lo, hi) = (a.min(b), a.max(b));
-        let (head, tail) = scratch.window.split_at_mut(hi);
-        let (wl, wh) = (&mut head[lo][1..=n], &mut tail[0][1..=n]);
-        // After the exchange entry `a` holds the smaller key.
-        let (first, second) = if a < b { (wl, wh) } else { (wh, wl) };
-        for (p, q) in first.iter_mut().zip(second.iter_mut()) {
-            let (small, large) = ((*p).min(*q), (*p).max(*q));
-            *p = small;
-            *q = large;
-        }
+    for x in x..n {
+        let ([median], [nans]) = window_medians::<1>(rows, x);
+        scratch.medians[x + 1] = median;
+        scratch.nans[x + 1] = nans;
     }
 }
 
@@ -309,7 +317,7 @@ mod tests {
             s ^= s << 17;
             s
         };
-        for (w, h) in [(1, 1), (2, 3), (7, 5), (40, 31)] {
+        for (w, h) in [(1, 1), (2, 3), (7, 5), (40, 31), (75, 9)] {
             for holes in [0, 3, 10] {
                 let d = DisparityMap::from_fn(w, h, |_, _| {
                     let r = next();
