@@ -270,11 +270,7 @@ pub(crate) fn path_step<const N: usize>(
     sum: &mut [u16],
     accumulate: bool,
 ) -> [u16; N] {
-    let lanes = cost.len();
-    assert!(lanes.is_multiple_of(LANES) && sum.len() <= lanes);
-    for i in 0..N {
-        assert!(ins[i].prev.len() == lanes + 2 && outs[i].len() == lanes + 2);
-    }
+    check_step_lengths(cost, &ins, &outs, sum);
     match level {
         // SAFETY: `Level::Avx512` is only chosen when the CPU has AVX-512F/BW/VL, and the lengths
         // the kernel reads and writes were checked above.
@@ -284,6 +280,22 @@ pub(crate) fn path_step<const N: usize>(
         #[cfg(target_arch = "x86_64")]
         Level::Avx2 => unsafe { avx2::path_step_avx2(cost, p1, ins, outs, sum, accumulate) },
         Level::Scalar => scalar::path_step_scalar(cost, p1, ins, outs, sum, accumulate),
+    }
+}
+
+/// The lengths [`path_step`]'s kernels rely on: `cost` a whole number of [`LANES`] blocks, at
+/// most that many sums, `prev` and `out` padded by one entry at each end.
+#[inline(always)]
+fn check_step_lengths<const N: usize>(
+    cost: &[u16],
+    ins: &[PathIn<'_>; N],
+    outs: &[&mut [u16]; N],
+    sum: &[u16],
+) {
+    let lanes = cost.len();
+    assert!(lanes.is_multiple_of(LANES) && sum.len() <= lanes);
+    for i in 0..N {
+        assert!(ins[i].prev.len() == lanes + 2 && outs[i].len() == lanes + 2);
     }
 }
 
@@ -302,11 +314,7 @@ pub(crate) fn path_step_inlined<const N: usize>(
 ) -> [u16; N] {
     #[cfg(target_arch = "x86_64")]
     if level == Level::Avx2 {
-        let lanes = cost.len();
-        assert!(lanes.is_multiple_of(LANES) && sum.len() <= lanes);
-        for i in 0..N {
-            assert!(ins[i].prev.len() == lanes + 2 && outs[i].len() == lanes + 2);
-        }
+        check_step_lengths(cost, &ins, &outs, sum);
         // SAFETY: `Level::Avx2` is only chosen when the CPU has AVX2; lengths checked above.
         return unsafe { avx2::path_step_avx2_body(cost, p1, ins, outs, sum, accumulate) };
     }
