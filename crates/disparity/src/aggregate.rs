@@ -13,11 +13,12 @@
 //! warms its vertical and diagonal paths up over those rows without storing anything. With one
 //! strip (or an overlap reaching the bottom of the image) the result is exact SGM.
 //!
-//! Each pass computes the census Hamming costs of a row on the fly (no stored cost volume) and
-//! runs the path steps of a pixel in one fused SIMD kernel ([`crate::kernels::path_step`]), which
-//! adds the path costs straight into the sum volume. Rows are handed over through a per-row lock:
-//! the first pass to reach a row stores its sums, the second adds its own and, the row now being
-//! final, selects the row's disparities while it is still in cache.
+//! The matching costs of a row are computed when a pass reaches it (no cost volume of the whole
+//! image); the path steps of a pixel run in one fused SIMD kernel ([`crate::kernels::path_step`]),
+//! which adds the path costs straight into the sum volume. Rows are handed over through a
+//! per-row lock: the first pass to reach a row stores its sums (and, where the plan allows,
+//! [`StripPlan::shared_costs`], its cost row for the other pass), the second adds its own and,
+//! the row now being final, selects the row's disparities while it is still in cache.
 //!
 //! **Single pass** ([`stream_and_select`]): only the directions coming from above or from the
 //! left (→, ↓, ↘, ↙, plus ← by a second sweep over each row, as OpenCV's default `MODE_SGBM`),

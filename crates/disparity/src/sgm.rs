@@ -652,8 +652,9 @@ pub(crate) fn aggregate_census(
 /// The peak working memory [`sgm`] plans for a `width × height` pair, in bytes: both census
 /// images, the disparity map (twice while the median runs), the `O(W·D)` path state of each
 /// aggregation pass and the `u16` sum volume of one strip (`2·W·D` bytes per strip row; strips
-/// sized for speed by default, or to fit [`SgmParams::max_memory`]); in single-pass mode one row
-/// of sums per thread instead. The input images are not counted. If `max_memory` is too small
+/// sized for speed by default, or to fit [`SgmParams::max_memory`]) with, where it fits beside
+/// them, the strip's matching costs kept for the second pass (about as much again); in
+/// single-pass mode one row of sums per thread instead. The input images are not counted. If `max_memory` is too small
 /// to plan anything, the smallest plan (one-row strips), which [`sgm`] refuses.
 pub fn planned_memory_bytes(width: usize, height: usize, params: &SgmParams) -> usize {
     memory::plan(width, height, params).bytes
