@@ -173,68 +173,28 @@ fn match_downscaled(
     let small = sgm_detailed(&small_left, &small_right, &small_params)?;
     drop((small_left, small_right));
 
+    // A disparity that lands outside the range asked for is rejected, decided on the reduced map.
     let scale = f as f32;
     let (lo, hi) = (range.min as f32, (range.max - 1) as f32);
-    // Full-resolution pixel x (row y) comes from reduced pixel min(x / f, small_width - 1)
-    // (row min(y / f, small_height - 1)): each reduced row is widened once into the first of its
-    // f rows, which the others copy.
-    let widen = |y: usize, row: &mut [f32], status_row: &mut [u8]| {
-        let at = (y / f).min(small_height - 1) * small_width;
-        let (small_row, small_status) = (
-            &small.disparity.as_slice()[at..at + small_width],
-            &small.status.as_slice()[at..at + small_width],
-        );
-        let range_end = crate::PixelStatus::RangeEnd as u8;
-        let run = |x: usize| if x + 1 < small_width { f } else { usize::MAX };
-        let (mut x, mut sx) = (0, 0);
-        while x < width {
-            let end = x.saturating_add(run(sx)).min(width);
-            let v = small_row[sx] * scale;
-            let (d, s) = if v.is_nan() || (lo..=hi).contains(&v) {
-                (v, small_status[sx])
+    let range_end = crate::PixelStatus::RangeEnd as u8;
+    let (small_disparity, small_status): (Vec<f32>, Vec<u8>) = small
+        .disparity
+        .as_slice()
+        .iter()
+        .zip(small.status.as_slice())
+        .map(|(&d, &s)| {
+            let v = d * scale;
+            if v.is_nan() || (lo..=hi).contains(&v) {
+                (v, s)
             } else {
                 (f32::NAN, range_end)
-            };
-            row[x..end].fill(d);
-            status_row[x..end].fill(s);
-            (x, sx) = (end, sx + 1);
-        }
-    };
-    let mut disparity = DisparityMap::new(width, height, f32::NAN);
-    let mut status = Image::new(width, height, 0u8);
-    disparity
-        .as_mut_slice()
-        .par_chunks_exact_mut(width * f)
-        .zip(status.as_mut_slice().par_chunks_exact_mut(width * f))
-        .enumerate()
-        .for_each(|(block, (rows, status_rows))| {
-            let (first, rest) = rows.split_at_mut(width);
-            let (first_status, rest_status) = status_rows.split_at_mut(width);
-            widen(block * f, first, first_status);
-            for (row, status_row) in rest.chunks_exact_mut(width).zip(rest_status.chunks_exact_mut(width)) {
-                row.copy_from_slice(first);
-                status_row.copy_from_slice(first_status);
             }
-        });
-    // The rows below the last whole block of f (height not a multiple of f) repeat the last
-    // reduced row.
-    let done = height / f * f;
-    for y in done..height {
-        let (row, status_row) = (
-            &mut disparity.as_mut_slice()[y * width..(y + 1) * width],
-            &mut status.as_mut_slice()[y * width..(y + 1) * width],
-        );
-        widen(y, row, status_row);
-    }
-    let confidence = small.confidence.as_ref().map(|c| {
-        let source =
-            |x: usize, y: usize| (x / f).min(small_width - 1) + (y / f).min(small_height - 1) * small_width;
-        let mut out = Image::new(width, height, 0.0f32);
-        for (i, v) in out.as_mut_slice().iter_mut().enumerate() {
-            *v = c.as_slice()[source(i % width, i / width)];
-        }
-        out
-    });
+        })
+        .unzip();
+    let disparity = replicate(&small_disparity, small_width, f, width, height);
+    let status = replicate(&small_status, small_width, f, width, height);
+    let confidence =
+        small.confidence.as_ref().map(|c| replicate(c.as_slice(), small_width, f, width, height));
     Ok(SgmOutput {
         disparity,
         status,
@@ -242,6 +202,40 @@ fn match_downscaled(
         adaptation: small.adaptation,
         search: SearchReport { downscale: f * small.search.downscale, ..small.search },
     })
+}
+
+/// `small` (`small_width` wide) brought to `width × height`: each pixel covers `f × f` pixels,
+/// the last row and column repeat where the size is not a multiple of `f`. Each reduced row is
+/// widened once into the first of its `f` rows, which the others copy.
+fn replicate<T: Copy + Send + Sync>(
+    small: &[T],
+    small_width: usize,
+    f: usize,
+    width: usize,
+    height: usize,
+) -> Image<T> {
+    let small_height = small.len() / small_width;
+    let widen = |y: usize, row: &mut [T]| {
+        let at = (y / f).min(small_height - 1) * small_width;
+        for (sx, &v) in small[at..at + small_width].iter().enumerate() {
+            let end = if sx + 1 < small_width { (sx + 1) * f } else { width };
+            row[sx * f..end].fill(v);
+        }
+    };
+    let mut out = vec![small[0]; width * height];
+    let whole = height / f * f;
+    let (blocks, tail) = out.split_at_mut(whole * width);
+    blocks.par_chunks_exact_mut(width * f).enumerate().for_each(|(block, rows)| {
+        let (first, rest) = rows.split_at_mut(width);
+        widen(block * f, first);
+        for row in rest.chunks_exact_mut(width) {
+            row.copy_from_slice(first);
+        }
+    });
+    for (i, row) in tail.chunks_exact_mut(width).enumerate() {
+        widen(whole + i, row);
+    }
+    Image::from_vec(width, height, out).expect("width * height samples")
 }
 
 /// What [`SgmParams::adapt_to_pair`] does before aggregation, shared by the matcher and its scalar

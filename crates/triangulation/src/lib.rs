@@ -292,16 +292,14 @@ fn percentiles_unsorted<const N: usize>(values: &[f32], ps: [f64; N]) -> [Option
         total += c as usize;
     }
     let bucket_of = |rank: usize| below.partition_point(|&b| b <= rank) - 1;
-    let position = |p: f64| (n - 1) as f64 * p.clamp(0.0, 100.0) / 100.0;
-    // The ranks asked for (each percentile's and the next), their buckets gathered once each.
-    let ranks: Vec<usize> = ps
+    // Each percentile's position between the ranks ⌊h⌋ and ⌊h⌋ + 1.
+    let positions = ps.map(|p| (n - 1) as f64 * p.clamp(0.0, 100.0) / 100.0);
+    // The buckets of the ranks asked for, gathered once each.
+    let mut buckets: Vec<usize> = positions
         .iter()
-        .flat_map(|&p| {
-            let lo = position(p).floor() as usize;
-            [lo, (lo + 1).min(n - 1)]
-        })
+        .flat_map(|&h| [h.floor() as usize, (h.floor() as usize + 1).min(n - 1)])
+        .map(bucket_of)
         .collect();
-    let mut buckets: Vec<usize> = ranks.iter().map(|&r| bucket_of(r)).collect();
     buckets.sort_unstable();
     buckets.dedup();
     let mut members: Vec<Vec<f32>> =
@@ -318,8 +316,7 @@ fn percentiles_unsorted<const N: usize>(values: &[f32], ps: [f64; N]) -> [Option
         let (_, &mut v, _) = members[i].select_nth_unstable_by(rank - below[b], f32::total_cmp);
         v
     };
-    for (i, &p) in ps.iter().enumerate() {
-        let h = position(p);
+    for (i, &h) in positions.iter().enumerate() {
         let lo = h.floor() as usize;
         let frac = h - lo as f64;
         let at_lo = rank_value(lo);
