@@ -131,8 +131,10 @@ pub enum Downscale {
     /// least [`AUTO_DOWNSCALE_SMOOTHNESS`] of the gradient energy per pixel survives halving, as
     /// in an image enlarged from a smaller one or seen through soft optics) and the halved pair
     /// keeps at least [`AUTO_DOWNSCALE_MIN_PIXELS`]; there matching the halved pair measured as
-    /// accurate or more, at a fraction of the time (docs/performance.md). Sharp pairs are matched
-    /// at full resolution.
+    /// accurate or more, at a fraction of the time (docs/performance.md). Where it would halve
+    /// twice or more, the last halving becomes a reduction by 1.5 (factor 3 instead of 4, 6
+    /// instead of 8): the reduced match's subpixel error is multiplied by the factor, and at 4 a
+    /// half-pixel error is already a 2 px one. Sharp pairs are matched at full resolution.
     #[default]
     Auto,
     /// Reduce by this factor (1: full resolution), at most [`MAX_DOWNSCALE`].

@@ -98,20 +98,57 @@ fn reduction(
         }
         Downscale::By(_) => None,
         Downscale::Auto => {
-            let (half_width, half_height) = (width / 2, height / 2);
-            if half_width * half_height < AUTO_DOWNSCALE_MIN_PIXELS
-                || half_width < params.census.width
-                || half_height < params.census.height
-                || params.range.count() < 2
-            {
+            // Whether a pair this size may be halved, and whether both halved views kept the
+            // gradient energy of views with no detail finer than 2 px.
+            let halvable = |(w, h): (usize, usize)| {
+                let (hw, hh) = (w / 2, h / 2);
+                hw * hh >= AUTO_DOWNSCALE_MIN_PIXELS
+                    && hw >= params.census.width
+                    && hh >= params.census.height
+                    && params.range.count() >= 2
+            };
+            let smooth = |(l, r): (&GrayImage, &GrayImage), (hl, hr): (&GrayImage, &GrayImage)| {
+                let smooth = |full: &GrayImage, half: &GrayImage| {
+                    gradient_energy(half) >= AUTO_DOWNSCALE_SMOOTHNESS * gradient_energy(full)
+                };
+                let (a, b) = rayon::join(|| smooth(l, hl), || smooth(r, hr));
+                a && b
+            };
+            if !halvable((width, height)) {
                 return None;
             }
             let (l, r) = reduce(2);
-            let smooth = |full: &GrayImage, half: &GrayImage| {
-                gradient_energy(half) >= AUTO_DOWNSCALE_SMOOTHNESS * gradient_energy(full)
-            };
-            let (a, b) = rayon::join(|| smooth(left, &l), || smooth(right, &r));
-            (a && b).then_some((2, l, r))
+            if !smooth((left, right), (&l, &r)) {
+                return None;
+            }
+            // Halved again while the halved pair passes the same test; but a disparity matched
+            // reduced by f carries f times the reduced match's subpixel error, so the last of two
+            // or more halvings becomes a reduction by 1.5 (4 → 3, 8 → 6): at 4 a half-pixel
+            // error of the reduced match is already a 2 px error (docs/performance.md).
+            let mut halvings = 1;
+            let mut level = None::<(GrayImage, GrayImage)>;
+            loop {
+                let (cl, cr) = level.as_ref().map_or((&l, &r), |(a, b)| (a, b));
+                if !halvable(cl.size()) {
+                    break;
+                }
+                let next = rayon::join(
+                    || crate::radiometric::downsample(cl, 2),
+                    || crate::radiometric::downsample(cr, 2),
+                );
+                if !smooth((cl, cr), (&next.0, &next.1)) {
+                    break;
+                }
+                halvings += 1;
+                level = Some(next);
+            }
+            if halvings == 1 {
+                return Some((2, l, r));
+            }
+            drop((l, r, level));
+            let f = 3 << (halvings - 2);
+            let (l, r) = reduce(f);
+            Some((f, l, r))
         }
     }
 }
@@ -167,9 +204,8 @@ fn match_downscaled(
     // At most as many disparities as the reduced pair is wide (rounding outwards can add one).
     let small_range =
         DisparityRange { max: small_range.max.min(small_range.min + small_width as i32), ..small_range };
-    // An explicit factor reduces once; auto decides again on the reduced pair.
-    let downscale = if params.downscale == Downscale::Auto { Downscale::Auto } else { Downscale::By(1) };
-    let small_params = SgmParams { range: small_range, downscale, ..params.clone() };
+    // The factor was decided on the full pair (auto included): the reduced pair is matched as it is.
+    let small_params = SgmParams { range: small_range, downscale: Downscale::By(1), ..params.clone() };
     let small = sgm_detailed(&small_left, &small_right, &small_params)?;
     drop((small_left, small_right));
 
@@ -716,9 +752,14 @@ mod tests {
     /// A view with no detail finer than a few pixels: the hash texture sampled every 4 px and
     /// interpolated bilinearly in between, shifted by `shift` px.
     fn enlarged(w: usize, h: usize, shift: i64) -> GrayImage {
+        enlarged_by(w, h, shift, 4.0)
+    }
+
+    /// [`enlarged`] with the texture sampled every `step` px.
+    fn enlarged_by(w: usize, h: usize, shift: i64, step: f64) -> GrayImage {
         let at = |x: i64, y: i64| f64::from(texture(x, y));
         GrayImage::from_fn(w, h, |x, y| {
-            let (fx, fy) = ((x as i64 + shift) as f64 / 4.0, y as f64 / 4.0);
+            let (fx, fy) = ((x as i64 + shift) as f64 / step, y as f64 / step);
             let (x0, y0) = (fx.floor() as i64, fy.floor() as i64);
             let (tx, ty) = (fx - x0 as f64, fy - y0 as f64);
             let top = at(x0, y0) * (1.0 - tx) + at(x0 + 1, y0) * tx;
@@ -749,6 +790,24 @@ mod tests {
         assert_eq!((out.search.downscale, out.disparity.size()), (2, (800, 500)));
         let near = out.disparity.as_slice().iter().filter(|d| (*d - 6.0).abs() <= 1.0).count();
         assert!(near > 800 * 500 * 3 / 4, "{near}");
+    }
+
+    #[test]
+    fn auto_downscale_replaces_a_second_halving_by_a_reduction_by_three() {
+        // No detail finer than 8 px: smooth enough to halve twice (the quarter, 400 x 250, keeps
+        // the floor), which becomes one reduction by 3, so that the reduced match's subpixel
+        // error is scaled by 3, not 4.
+        let params = SgmParams { range: DisparityRange::new(0, 48).unwrap(), ..SgmParams::default() };
+        let left = enlarged_by(1600, 1000, 0, 8.0);
+        let quarter = crate::radiometric::downsample(&crate::radiometric::downsample(&left, 2), 2);
+        let energy = gradient_energy(&quarter) / gradient_energy(&crate::radiometric::downsample(&left, 2));
+        assert!(energy > AUTO_DOWNSCALE_SMOOTHNESS, "{energy}");
+        assert!(matches!(reduction(&left, &left, &params), Some((3, l, _)) if l.size() == (533, 333)));
+        let right = enlarged_by(1600, 1000, 12, 8.0);
+        let out = sgm_detailed(&left, &right, &params).unwrap();
+        assert_eq!((out.search.downscale, out.disparity.size()), (3, (1600, 1000)));
+        let near = out.disparity.as_slice().iter().filter(|d| (*d - 12.0).abs() <= 1.5).count();
+        assert!(near > 1600 * 1000 * 3 / 4, "{near}");
     }
 
     #[test]
