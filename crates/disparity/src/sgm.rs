@@ -98,54 +98,48 @@ fn reduction(
         }
         Downscale::By(_) => None,
         Downscale::Auto => {
-            // Whether a pair this size may be halved, and whether both halved views kept the
-            // gradient energy of views with no detail finer than 2 px.
+            // Halved while the halved pair keeps the floor and both halved views kept the
+            // gradient energy of views with no detail finer than 2 px (each level's energies
+            // computed once); but a disparity matched reduced by f carries f times the reduced
+            // match's subpixel error, so the last of two or more halvings becomes a reduction
+            // by 1.5 (4 → 3, 8 → 6): at 4 a half-pixel error of the reduced match is already a
+            // 2 px error (docs/performance.md).
             let halvable = |(w, h): (usize, usize)| {
                 let (hw, hh) = (w / 2, h / 2);
                 hw * hh >= AUTO_DOWNSCALE_MIN_PIXELS
                     && hw >= params.census.width
                     && hh >= params.census.height
-                    && params.range.count() >= 2
             };
-            let smooth = |(l, r): (&GrayImage, &GrayImage), (hl, hr): (&GrayImage, &GrayImage)| {
-                let smooth = |full: &GrayImage, half: &GrayImage| {
-                    gradient_energy(half) >= AUTO_DOWNSCALE_SMOOTHNESS * gradient_energy(full)
-                };
-                let (a, b) = rayon::join(|| smooth(l, hl), || smooth(r, hr));
-                a && b
-            };
-            if !halvable((width, height)) {
+            let energies =
+                |(l, r): (&GrayImage, &GrayImage)| rayon::join(|| gradient_energy(l), || gradient_energy(r));
+            if params.range.count() < 2 || !halvable((width, height)) {
                 return None;
             }
-            let (l, r) = reduce(2);
-            if !smooth((left, right), (&l, &r)) {
-                return None;
-            }
-            // Halved again while the halved pair passes the same test; but a disparity matched
-            // reduced by f carries f times the reduced match's subpixel error, so the last of two
-            // or more halvings becomes a reduction by 1.5 (4 → 3, 8 → 6): at 4 a half-pixel
-            // error of the reduced match is already a 2 px error (docs/performance.md).
-            let mut halvings = 1;
-            let mut level = None::<(GrayImage, GrayImage)>;
+            let mut energy = energies((left, right));
+            let mut halved: Option<(GrayImage, GrayImage)> = None;
+            let mut halvings = 0;
             loop {
-                let (cl, cr) = level.as_ref().map_or((&l, &r), |(a, b)| (a, b));
-                if !halvable(cl.size()) {
+                let (l, r) = halved.as_ref().map_or((left, right), |(l, r)| (l, r));
+                if !halvable(l.size()) {
                     break;
                 }
                 let next = rayon::join(
-                    || crate::radiometric::downsample(cl, 2),
-                    || crate::radiometric::downsample(cr, 2),
+                    || crate::radiometric::downsample(l, 2),
+                    || crate::radiometric::downsample(r, 2),
                 );
-                if !smooth((cl, cr), (&next.0, &next.1)) {
+                let next_energy = energies((&next.0, &next.1));
+                if next_energy.0 < AUTO_DOWNSCALE_SMOOTHNESS * energy.0
+                    || next_energy.1 < AUTO_DOWNSCALE_SMOOTHNESS * energy.1
+                {
                     break;
                 }
                 halvings += 1;
-                level = Some(next);
+                (halved, energy) = (Some(next), next_energy);
             }
-            if halvings == 1 {
-                return Some((2, l, r));
+            if halvings < 2 {
+                return halved.map(|(l, r)| (2, l, r));
             }
-            drop((l, r, level));
+            drop(halved);
             let f = 3 << (halvings - 2);
             let (l, r) = reduce(f);
             Some((f, l, r))
