@@ -24,7 +24,7 @@ const KNOTS: usize = 64;
 /// Matched pairs the tone curve needs.
 const MIN_SAMPLES: usize = 200;
 /// Tiles per side of the grid whose median attenuations the smooth field is fitted to.
-const GAIN_TILES: usize = 5;
+const GAIN_TILES: usize = 8;
 /// Samples a tile needs for its median attenuation.
 const MIN_TILE_SAMPLES: usize = 12;
 /// Rounds of fitting the curve with the attenuation fixed, then the attenuation with the curve fixed.
@@ -215,21 +215,26 @@ fn fit_curve(right: &[f32], mut left: Vec<f32>) -> Option<[f32; 256]> {
 fn fit_attenuation(samples: &[&ToneSample], curve: &[f32; 256], model: Vignetting) -> Option<[f32; 6]> {
     let n = GAIN_TILES;
     let mut tiles: Vec<Vec<f32>> = vec![Vec::new(); n * n];
+    // Each tile's sample positions summed: its median stands at their centroid, not at the tile's
+    // centre (matches gather where the texture is, and the attenuation changes across a tile).
+    let mut centroids = vec![(0f64, 0f64); n * n];
     for s in samples {
         // Clipped or nearly black samples say nothing about the attenuation.
         let c = curve[(s.right.round() as usize).min(255)];
         if s.right > 2.0 && s.right < 253.0 && s.left >= 16.0 {
             let (tx, ty) = (((s.u * n as f32) as usize).min(n - 1), ((s.v * n as f32) as usize).min(n - 1));
             tiles[ty * n + tx].push(c / s.left);
+            centroids[ty * n + tx].0 += f64::from(s.u);
+            centroids[ty * n + tx].1 += f64::from(s.v);
         }
     }
     // Rows of the normal equations: (u, v, median attenuation, weight).
     let mut points = Vec::new();
-    for (i, t) in tiles.iter_mut().enumerate() {
+    for (t, &(su, sv)) in tiles.iter_mut().zip(&centroids) {
         if t.len() >= MIN_TILE_SAMPLES {
+            let (u, v) = ((su / t.len() as f64) as f32, (sv / t.len() as f64) as f32);
             let mid = t.len() / 2;
             let g = *t.select_nth_unstable_by(mid, f32::total_cmp).1;
-            let (u, v) = (((i % n) as f32 + 0.5) / n as f32, ((i / n) as f32 + 0.5) / n as f32);
             points.push((u - 0.5, v - 0.5, g, t.len() as f32));
         }
     }
@@ -384,6 +389,25 @@ mod tests {
         let s = samples(|l, _, _| l);
         let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic)).expect("enough samples");
         assert!(worst_error(&s, &c) < 1.5, "{}", worst_error(&s, &c));
+    }
+
+    #[test]
+    fn vignetting_is_undone_where_the_matches_cluster() {
+        // Matches only in the top-left 12×8 of every 30×20 block of a 120×80 grid (texture in
+        // patches): each tile's median then belongs to its samples' centroid, not to its centre.
+        let mut s = Vec::new();
+        for (x, y) in (0..80).flat_map(|y| (0..120).map(move |x| (x, y))) {
+            if x % 30 < 12 && y % 20 < 8 {
+                let (u, v) = ((x as f32 + 0.5) / 120.0, (y as f32 + 0.5) / 80.0);
+                let h = (x as u32).wrapping_mul(2_654_435_761) ^ (y as u32).wrapping_mul(2_246_822_519);
+                let left = 10.0 + (h >> 8) as f32 % 236.0;
+                let right = left * (1.0 - 0.4 * ((u - 0.5).powi(2) + (v - 0.5).powi(2)) / 0.5);
+                s.push(ToneSample { u, v, left, right: right.round() });
+            }
+        }
+        let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic)).expect("enough samples");
+        // 22 grey levels with the medians at the tiles' centres.
+        assert!(worst_error(&s, &c) < 2.0, "{}", worst_error(&s, &c));
     }
 
     #[test]
