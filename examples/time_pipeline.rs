@@ -27,22 +27,13 @@ fn usage() -> ! {
     std::process::exit(2);
 }
 
-/// The command line's allocator settings (`reuse_freed_memory` in `src/main.rs`), so the calls
-/// after the warm-up reuse freed buffers as the CLI's later allocations do.
-#[cfg(all(target_os = "linux", target_env = "gnu"))]
-fn reuse_freed_memory() {
-    // SAFETY: `mallopt` only tunes the allocator; called before any other thread exists.
-    unsafe {
-        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
-        libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 30);
-    }
-}
-
-#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-fn reuse_freed_memory() {}
+/// The command line's allocator settings, so the calls after the warm-up reuse freed buffers as
+/// the CLI's later allocations do.
+#[path = "../src/allocator.rs"]
+mod allocator;
 
 fn main() {
-    reuse_freed_memory();
+    allocator::reuse_freed_memory();
     let mut positional = Vec::new();
     let (mut options, mut threads, mut warmup) = (MatcherOptions::default(), None, 1usize);
     let mut args = std::env::args().skip(1);

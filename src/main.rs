@@ -6,6 +6,7 @@
 
 #[macro_use]
 mod error;
+mod allocator;
 mod args;
 mod batch;
 mod calc;
@@ -35,7 +36,7 @@ use crate::config::{
 use crate::error::{one_line, UsageError};
 
 fn main() -> ExitCode {
-    reuse_freed_memory();
+    allocator::reuse_freed_memory();
     match run() {
         Ok(code) => code,
         Err(err) if is_broken_pipe(&err) => ExitCode::SUCCESS,
@@ -47,24 +48,6 @@ fn main() -> ExitCode {
         }
     }
 }
-
-/// Lets glibc hand freed memory to the next allocation instead of returning it to the system. By
-/// default every buffer of 128 KiB or more is a fresh mapping, and a pair runs through many
-/// image-sized buffers (grey views, census images, maps between post-processing steps), each
-/// paying page faults on first touch: 4–13 % of the matching time on the Middlebury scenes
-/// (docs/performance.md). Buffers above 32 MiB (the largest allowed) are still mapped apart,
-/// and the aggregation volume has its own mapping.
-#[cfg(all(target_os = "linux", target_env = "gnu"))]
-fn reuse_freed_memory() {
-    // SAFETY: `mallopt` only tunes the allocator; called before any other thread exists.
-    unsafe {
-        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
-        libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 30);
-    }
-}
-
-#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-fn reuse_freed_memory() {}
 
 fn run() -> anyhow::Result<ExitCode> {
     let cli = match Cli::try_parse_with_defaults() {
