@@ -88,12 +88,12 @@ fn reduction(
     params: &SgmParams,
 ) -> Option<(usize, GrayImage, GrayImage)> {
     let (width, height) = left.size();
-    let reduce = |f: usize| {
-        rayon::join(|| crate::radiometric::downsample(left, f), || crate::radiometric::downsample(right, f))
+    let reduce = |(l, r): (&GrayImage, &GrayImage), f: usize| {
+        rayon::join(|| crate::radiometric::downsample(l, f), || crate::radiometric::downsample(r, f))
     };
     match params.downscale {
         Downscale::By(f) if f > 1 => {
-            let (l, r) = reduce(f);
+            let (l, r) = reduce((left, right), f);
             Some((f, l, r))
         }
         Downscale::By(_) => None,
@@ -123,10 +123,7 @@ fn reduction(
                 if !halvable(l.size()) {
                     break;
                 }
-                let next = rayon::join(
-                    || crate::radiometric::downsample(l, 2),
-                    || crate::radiometric::downsample(r, 2),
-                );
+                let next = reduce((l, r), 2);
                 let next_energy = energies((&next.0, &next.1));
                 if next_energy.0 < AUTO_DOWNSCALE_SMOOTHNESS * energy.0
                     || next_energy.1 < AUTO_DOWNSCALE_SMOOTHNESS * energy.1
@@ -141,7 +138,7 @@ fn reduction(
             }
             drop(halved);
             let f = 3 << (halvings - 2);
-            let (l, r) = reduce(f);
+            let (l, r) = reduce((left, right), f);
             Some((f, l, r))
         }
     }
