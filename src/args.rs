@@ -365,8 +365,9 @@ pub struct MatchArgs {
     /// SGM: match the pair reduced N times on each side (box filter), then bring the disparities
     /// back to full size: about N³ times less work, for disparities N times coarser and no detail
     /// below N pixels. auto (default): halve, repeatedly, while both views hold no detail finer than
-    /// 2 px (enlarged images, soft optics) and at least 100 000 pixels remain, reducing by 3 where
-    /// it would halve twice (6 for three times); 1: full resolution (docs/performance.md)
+    /// 2 px (enlarged images, soft optics; sensor noise discounted) and at least 100 000 pixels
+    /// remain, reducing by 3 where it would halve twice (6 for three times); 1: full resolution
+    /// (docs/performance.md)
     #[arg(long, value_name = "auto|N", help_heading = "Matching")]
     pub downscale: Option<Downscale>,
 

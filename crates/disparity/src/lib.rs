@@ -129,7 +129,8 @@ pub enum Search {
 pub enum Downscale {
     /// Halve the pair, again and again, while both views hold no detail finer than 2 px (at
     /// least [`AUTO_DOWNSCALE_SMOOTHNESS`] of the gradient energy per pixel survives halving, as
-    /// in an image enlarged from a smaller one or seen through soft optics) and the halved pair
+    /// in an image enlarged from a smaller one or seen through soft optics; sensor noise, which
+    /// would read as detail at every pixel, estimated and discounted) and the halved pair
     /// keeps at least [`AUTO_DOWNSCALE_MIN_PIXELS`]; there matching the halved pair measured as
     /// accurate or more, at a fraction of the time (docs/performance.md). Where it would halve
     /// twice or more, the last halving becomes a reduction by 1.5 (factor 3 instead of 4, 6

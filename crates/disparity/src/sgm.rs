@@ -116,6 +116,9 @@ fn reduction(
                 return None;
             }
             let mut energy = energies((left, right));
+            // The sensor noise, estimated once and only where the raw energies fail the test (a
+            // pair that passes without the noise passes with it discounted).
+            let mut noise: Option<f64> = None;
             let mut halved: Option<(GrayImage, GrayImage)> = None;
             let mut halvings = 0;
             loop {
@@ -125,10 +128,23 @@ fn reduction(
                 }
                 let next = reduce((l, r), 2);
                 let next_energy = energies((&next.0, &next.1));
-                if next_energy.0 < AUTO_DOWNSCALE_SMOOTHNESS * energy.0
-                    || next_energy.1 < AUTO_DOWNSCALE_SMOOTHNESS * energy.1
-                {
-                    break;
+                let raw = smooth_enough(energy.0, next_energy.0, 0.0)
+                    && smooth_enough(energy.1, next_energy.1, 0.0);
+                if !raw {
+                    // The rig's noise: the larger of the two views' estimates, as a view
+                    // resampled for its vertical offset (or blurred) lost part of its noise to
+                    // the interpolation; at most σ MAX_SENSOR_NOISE. Each halving (a 2 × 2
+                    // mean) divides its variance by 4.
+                    let rig_noise = *noise.get_or_insert_with(|| {
+                        let (l, r) = rayon::join(|| noise_variance(left), || noise_variance(right));
+                        l.max(r).min((MAX_SENSOR_NOISE * 257.0).powi(2))
+                    });
+                    let variance = rig_noise / 4f64.powi(halvings);
+                    if !(smooth_enough(energy.0, next_energy.0, variance)
+                        && smooth_enough(energy.1, next_energy.1, variance))
+                    {
+                        break;
+                    }
                 }
                 halvings += 1;
                 (halved, energy) = (Some(next), next_energy);
@@ -142,6 +158,70 @@ fn reduction(
             Some((f, l, r))
         }
     }
+}
+
+/// The most sensor noise [`Downscale::Auto`] discounts, σ in 8-bit grey levels. One view cannot
+/// tell noise from a texture that changes at every pixel (only the other view can: the texture
+/// is in both); above this it is taken for texture, and such a pair stays at full resolution.
+/// Camera noise is usually σ 1–5 grey levels; issue 13's strongest is 6.
+const MAX_SENSOR_NOISE: f64 = 8.0;
+
+/// [`Downscale::Auto`]'s test for one view and one halving: the halved view's gradient energy
+/// is at least [`AUTO_DOWNSCALE_SMOOTHNESS`] times this level's, both net of the white noise of
+/// `variance` (this level's) they hold. Noise, independent from pixel to pixel, adds twice its
+/// variance to the energy and reads as detail at every pixel; discounted, a noisy view of a
+/// smooth scene halves like a clean one (measured: 4× enlargements with σ 6 grey-level noise
+/// matched at full resolution for equal or worse bad2, docs/performance.md).
+fn smooth_enough(energy: f64, halved_energy: f64, variance: f64) -> bool {
+    (halved_energy - 0.5 * variance).max(0.0)
+        >= AUTO_DOWNSCALE_SMOOTHNESS * (energy - 2.0 * variance).max(0.0)
+}
+
+/// A view's white-noise variance in squared 16-bit samples, as Immerkær (1996) estimates it but
+/// with a median, which edges and texture (a minority of the pixels) do not move: white noise of
+/// σ gives the 3 × 3 Laplacian `[1 −2 1; −2 4 −2; 1 −2 1]` a response of σ·6 standard deviation,
+/// whose median absolute value is 0.6745 of that. Every 4th row is sampled; an integer
+/// histogram makes it the same on any number of threads.
+fn noise_variance(image: &GrayImage) -> f64 {
+    const BINS: usize = 1 << 16;
+    let (w, h) = image.size();
+    if w < 3 || h < 3 {
+        return 0.0;
+    }
+    let histogram = (1..h - 1)
+        .into_par_iter()
+        .step_by(4)
+        .fold(
+            || vec![0u32; BINS],
+            |mut histogram, y| {
+                let (above, row, below) = (image.row(y - 1), image.row(y), image.row(y + 1));
+                let at = |r: &[u16], x: usize| i32::from(r[x]);
+                for x in 1..w - 1 {
+                    let corners = at(above, x - 1) + at(above, x + 1) + at(below, x - 1) + at(below, x + 1);
+                    let sides = at(above, x) + at(row, x - 1) + at(row, x + 1) + at(below, x);
+                    let response = corners - 2 * sides + 4 * at(row, x);
+                    histogram[(response.unsigned_abs() as usize).min(BINS - 1)] += 1;
+                }
+                histogram
+            },
+        )
+        .reduce(
+            || vec![0u32; BINS],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
+                a
+            },
+        );
+    let count: u64 = histogram.iter().map(|&n| u64::from(n)).sum();
+    let mut seen = 0u64;
+    let median = histogram
+        .iter()
+        .position(|&n| {
+            seen += u64::from(n);
+            2 * seen >= count
+        })
+        .unwrap_or(0);
+    (median as f64 / (6.0 * 0.6745)).powi(2)
 }
 
 /// The mean squared difference between horizontal and vertical neighbours (summed per row, then
@@ -781,6 +861,51 @@ mod tests {
         assert_eq!((out.search.downscale, out.disparity.size()), (2, (800, 500)));
         let near = out.disparity.as_slice().iter().filter(|d| (*d - 6.0).abs() <= 1.0).count();
         assert!(near > 800 * 500 * 3 / 4, "{near}");
+    }
+
+    /// `image` plus white, roughly Gaussian noise of `sigma` grey levels (16-bit samples: 257 per
+    /// grey level), independent per pixel and per `seed`: a sum of 12 hashed uniforms.
+    fn noisy(image: &GrayImage, sigma: f64, seed: i64) -> GrayImage {
+        GrayImage::from_fn(image.width(), image.height(), |x, y| {
+            let uniform = |k: i64| f64::from(texture(x as i64 * 12 + k, y as i64 + seed * 100_003)) / 65536.0;
+            let gaussian = (0..12).map(uniform).sum::<f64>() - 6.0;
+            (f64::from(image.get(x, y)) + gaussian * sigma * 257.0).round().clamp(0.0, 65535.0) as u16
+        })
+    }
+
+    /// [`enlarged_by`] (every 4 px) with the texture's contrast cut to a quarter of the range.
+    fn soft(w: usize, h: usize, shift: i64) -> GrayImage {
+        let full = enlarged(w, h, shift);
+        GrayImage::from_fn(w, h, |x, y| 24_000 + full.get(x, y) / 4)
+    }
+
+    #[test]
+    fn sensor_noise_is_estimated_through_texture() {
+        let sigma = |image: &GrayImage| noise_variance(image).sqrt() / 257.0;
+        let flat = GrayImage::new(600, 400, 30_000);
+        assert_eq!(sigma(&flat), 0.0);
+        for true_sigma in [2.0, 6.0] {
+            for image in [flat.clone(), soft(600, 400, 0)] {
+                let estimate = sigma(&noisy(&image, true_sigma, 1));
+                assert!((estimate / true_sigma - 1.0).abs() < 0.08, "{estimate} for {true_sigma}");
+            }
+        }
+    }
+
+    #[test]
+    fn auto_downscale_discounts_sensor_noise() {
+        // A smooth pair with σ 6 grey-level noise in each view (independent): the noise, at every
+        // pixel, keeps the raw energies from passing the test; net of it the pair halves as the
+        // clean pair does. A sharp pair with the same noise stays at full resolution.
+        let params = SgmParams { range: DisparityRange::new(0, 32).unwrap(), ..SgmParams::default() };
+        let (left, right) = (soft(800, 500, 0), soft(800, 500, 6));
+        assert!(matches!(reduction(&left, &right, &params), Some((2, _, _))));
+        let (left, right) = (noisy(&left, 6.0, 1), noisy(&right, 6.0, 2));
+        let halved = crate::radiometric::downsample(&left, 2);
+        assert!(gradient_energy(&halved) < AUTO_DOWNSCALE_SMOOTHNESS * gradient_energy(&left));
+        assert!(matches!(reduction(&left, &right, &params), Some((2, l, _)) if l.size() == (400, 250)));
+        let sharp = GrayImage::from_fn(800, 500, |x, y| 24_000 + texture(x as i64, y as i64) / 4);
+        assert!(reduction(&noisy(&sharp, 6.0, 1), &noisy(&sharp, 6.0, 2), &params).is_none());
     }
 
     #[test]

@@ -47,8 +47,8 @@ use crate::input::{Input, View};
 ///   from 256 disparities, or 128 from 2 megapixels; else full).
 /// - ``downscale`` [None: "auto"]: SGM: match the pair reduced this many times on each side, then
 ///   bring the disparities back to full size (about downscale³ less work, coarser disparities);
-///   "auto" halves it while both views hold no detail finer than 2 px (by 3 where it would halve
-///   twice); 1: full resolution.
+///   "auto" halves it while both views hold no detail finer than 2 px, sensor noise discounted
+///   (by 3 where it would halve twice); 1: full resolution.
 /// - ``p1`` [None: 20], ``p2`` [None: 80]: SGM penalties, in census bits.
 /// - ``uniqueness`` [None: 0 (sgm), 10 (bm)]: uniqueness margin, percent; 0 disables it.
 /// - ``lr_max_diff`` [None: 3 (sgm; 1 with fill), 1 (bm)]: left-right check tolerance, px.
