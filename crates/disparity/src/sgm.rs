@@ -128,9 +128,11 @@ fn reduction(
                 }
                 let next = reduce((l, r), 2);
                 let next_energy = energies((&next.0, &next.1));
-                let raw = smooth_enough(energy.0, next_energy.0, 0.0)
-                    && smooth_enough(energy.1, next_energy.1, 0.0);
-                if !raw {
+                let both_smooth = |variance: f64| {
+                    smooth_enough(energy.0, next_energy.0, variance)
+                        && smooth_enough(energy.1, next_energy.1, variance)
+                };
+                if !both_smooth(0.0) {
                     // The rig's noise: the larger of the two views' estimates, as a view
                     // resampled for its vertical offset (or blurred) lost part of its noise to
                     // the interpolation; at most σ MAX_SENSOR_NOISE. Each halving (a 2 × 2
@@ -139,10 +141,7 @@ fn reduction(
                         let (l, r) = rayon::join(|| noise_variance(left), || noise_variance(right));
                         l.max(r).min((MAX_SENSOR_NOISE * 257.0).powi(2))
                     });
-                    let variance = rig_noise / 4f64.powi(halvings);
-                    if !(smooth_enough(energy.0, next_energy.0, variance)
-                        && smooth_enough(energy.1, next_energy.1, variance))
-                    {
+                    if !both_smooth(rig_noise / 4f64.powi(halvings)) {
                         break;
                     }
                 }
