@@ -1,4 +1,4 @@
-//! Matcher throughput: one group per SGM stage and end to end (SGM 8 and 4 paths in two passes,
+//! Matcher throughput: one group per SGM stage (the post-processing as one) and end to end (SGM 8 and 4 paths in two passes,
 //! 5 and 3 paths in one pass, each with the full search; 8 paths and 3 paths in one pass also
 //! coarse to fine, `-hierarchical`; block matching), at 640×480, 1280×720 and 1920×1080 with 64,
 //! 128 and 256 disparities. Throughput is W·H·D elements (disparity evaluations) per second.
@@ -60,6 +60,7 @@ fn stage_benches(c: &mut Criterion) {
         ("sgm_stage_matching_cost", 1),
         ("sgm_stage_aggregate_wta", 2),
         ("sgm_stage_median", 3),
+        ("sgm_stage_post", 4),
     ] {
         let mut group = c.benchmark_group(stage);
         group
@@ -81,9 +82,15 @@ fn stage_benches(c: &mut Criterion) {
                 2 => group.bench_function(BenchmarkId::from_parameter(&id), |b| {
                     b.iter(|| stages::aggregate_and_select_disparities(&left, &cl, &cr, &params))
                 }),
-                _ => {
+                3 => {
                     let d = stages::aggregate_and_select_disparities(&left, &cl, &cr, &params);
                     group.bench_function(BenchmarkId::from_parameter(&id), |b| b.iter(|| stages::median(&d)))
+                }
+                _ => {
+                    let d = stages::aggregate_and_select_disparities(&left, &cl, &cr, &params);
+                    group.bench_function(BenchmarkId::from_parameter(&id), |b| {
+                        b.iter(|| stages::post_process(&d, &left, &params))
+                    })
                 }
             };
         }

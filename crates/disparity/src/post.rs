@@ -139,15 +139,30 @@ pub(crate) fn finish(mut disparity: DisparityMap, left: &GrayImage, params: &Sgm
 pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRange) {
     let width = disparity.width();
     let ends = RangeEnds::disparities(range);
-    disparity.as_mut_slice().par_chunks_exact_mut(width.max(1)).for_each(|row| {
-        for (x, d) in row.iter_mut().enumerate() {
-            if d.is_nan() {
-                continue;
+    let (first, last) = (range.min as f32, (range.max - 1) as f32);
+    // The columns whose search covered the whole range (an interval: both ends of the feasible
+    // disparities grow with x): only the range's own ends are ends there (`at_end` with `lo ==
+    // first` and `hi == last`), a test the compiler vectorises.
+    let is_full = |x: usize| crate::wta::feasible_left(x, width, range).len() == range.count();
+    let start = (0..width).find(|&x| is_full(x)).unwrap_or(width);
+    let end = (start..width).find(|&x| !is_full(x)).unwrap_or(width);
+    let tag = tagged_nan(PixelStatus::RangeEnd);
+    let rows_per_task = disparity.height().div_ceil(16).max(1);
+    disparity.as_mut_slice().par_chunks_mut(width.max(1) * rows_per_task).for_each(|rows| {
+        for row in rows.chunks_exact_mut(width.max(1)) {
+            for x in (0..start).chain(end..width) {
+                let d = &mut row[x];
+                if d.is_nan() {
+                    continue;
+                }
+                let ks = crate::wta::feasible_left(x, width, range);
+                let (lo, hi) = (range.min as f32 + ks.start as f32, range.min as f32 + ks.end as f32 - 1.0);
+                if ends.at_end(*d, lo, hi) {
+                    *d = tag;
+                }
             }
-            let ks = crate::wta::feasible_left(x, width, range);
-            let (lo, hi) = (range.min as f32 + ks.start as f32, range.min as f32 + ks.end as f32 - 1.0);
-            if ends.at_end(*d, lo, hi) {
-                *d = tagged_nan(PixelStatus::RangeEnd);
+            for d in &mut row[start..end] {
+                *d = if *d == first || *d == last { tag } else { *d };
             }
         }
     });
@@ -233,6 +248,40 @@ pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params
 mod tests {
     use super::*;
     use crate::status::status_of;
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// Integer winners (and holes) at every disparity of ranges with negative, zero and
+        /// positive minimums: the per-pixel test of every column gives the same map.
+        #[test]
+        fn range_ends_match_the_per_pixel_test(w in 1usize..60, min in -20i32..20, count in 1i32..40, seed in proptest::prelude::any::<u64>()) {
+            let range = DisparityRange::new(min, min + count).unwrap();
+            let mut s = seed | 1;
+            let mut next = move || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s };
+            let map = DisparityMap::from_fn(w, 3, |_, _| match next() % 8 {
+                0 => f32::NAN,
+                k => (min + (next() % count as u64) as i32) as f32 + if k == 1 { 0.5 } else { 0.0 },
+            });
+            let mut fast = map.clone();
+            reject_range_ends(&mut fast, range);
+            let ends = RangeEnds::disparities(range);
+            let mut slow = map;
+            for y in 0..3 {
+                for x in 0..w {
+                    let d = slow.get(x, y);
+                    let ks = crate::wta::feasible_left(x, w, range);
+                    let (lo, hi) = (min as f32 + ks.start as f32, min as f32 + ks.end as f32 - 1.0);
+                    if !d.is_nan() && ends.at_end(d, lo, hi) {
+                        slow.set(x, y, tagged_nan(PixelStatus::RangeEnd));
+                    }
+                }
+            }
+            for (a, b) in fast.as_slice().iter().zip(slow.as_slice()) {
+                proptest::prop_assert!(a.to_bits() == b.to_bits());
+            }
+        }
+    }
 
     #[test]
     fn border_ramps_behind_the_surface_are_rejected() {

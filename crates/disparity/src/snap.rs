@@ -32,91 +32,98 @@ pub(crate) fn snap_edges(disparity: &DisparityMap, guide: &GrayImage, radius: us
     if radius == 0 || w == 0 || h == 0 {
         return disparity.clone();
     }
-    let mut grey = vec![0f32; w * h];
-    grey.par_chunks_mut(w).zip(guide.as_slice().par_chunks(w)).for_each(|(g, v)| {
-        for (g, &v) in g.iter_mut().zip(v) {
-            *g = f32::from(v) / 257.0;
-        }
-    });
+    let (src, grey) = (disparity.as_slice(), guide.as_slice());
     let mut rows = disparity.clone();
     rows.as_mut_slice().par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-        snap_line(disparity.row(y), &grey[y * w..(y + 1) * w], radius, out);
-    });
-    // Columns, a block of neighbouring columns at a time: each block is gathered into contiguous
-    // columns (one cache line per row read), snapped, and written back row by row.
-    const BLOCK: usize = 16;
-    let src = rows.as_slice();
-    let blocks: Vec<(usize, Vec<f32>)> = (0..w.div_ceil(BLOCK))
-        .into_par_iter()
-        .map(|b| {
-            let (x0, n) = (b * BLOCK, BLOCK.min(w - b * BLOCK));
-            let (mut d, mut g) = (vec![0f32; n * h], vec![0f32; n * h]);
-            for y in 0..h {
-                for j in 0..n {
-                    d[j * h + y] = src[y * w + x0 + j];
-                    g[j * h + y] = grey[y * w + x0 + j];
-                }
-            }
-            let mut out = d.clone();
-            for j in 0..n {
-                let col = j * h..(j + 1) * h;
-                snap_line(&d[col.clone()], &g[col.clone()], radius, &mut out[col]);
-            }
-            (x0, out)
-        })
-        .collect();
-    let mut snapped = DisparityMap::new(w, h, 0.0);
-    snapped.as_mut_slice().par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x0, out) in &blocks {
-            for (j, d) in row[*x0..*x0 + out.len() / h].iter_mut().enumerate() {
-                *d = out[j * h + y];
-            }
+        let line = Line { src: &src[y * w..(y + 1) * w], grey: &grey[y * w..(y + 1) * w], stride: 1 };
+        for x in jumps(&line.src[..w - 1], &line.src[1..]) {
+            snap_jump(&line, 0, w, x + 1, radius, out);
         }
     });
+    // Columns: the jumps found row pair by row pair (whole rows read, in parallel), then each
+    // followed down or up its own column, a column's jumps in the order of their rows as a pass
+    // along the column takes them (jumps are rare).
+    let src = rows.as_slice();
+    let column_jumps: Vec<Vec<u32>> = (1..h)
+        .into_par_iter()
+        .map(|y| jumps(&src[(y - 1) * w..y * w], &src[y * w..(y + 1) * w]).map(|x| x as u32).collect())
+        .collect();
+    let mut snapped = rows.clone();
+    let out = snapped.as_mut_slice();
+    let line = Line { src, grey, stride: w };
+    for (y, xs) in (1..h).zip(&column_jumps) {
+        for &x in xs {
+            snap_jump(&line, x as usize, h, y, radius, out);
+        }
+    }
     snapped
 }
 
-/// One row or column: `src` the disparities, `grey` the intensities, results into `out`
-/// (a copy of `src` on entry).
-fn snap_line(src: &[f32], grey: &[f32], radius: usize, out: &mut [f32]) {
-    let n = src.len();
-    // step(i): the intensity step between pixels i - 1 and i.
-    let step = |i: usize| (grey[i] - grey[i - 1]).abs();
+/// The indices `i` where `b[i]` and `a[i]` differ by more than [`SNAP_JUMP`] (a NaN on either
+/// side is no jump: the comparison is false), a block of 16 tested at once.
+fn jumps<'a>(a: &'a [f32], b: &'a [f32]) -> impl Iterator<Item = usize> + 'a {
+    const BLOCK: usize = 16;
+    let is_jump = |i: usize| (b[i] - a[i]).abs() > SNAP_JUMP;
+    (0..a.len().div_ceil(BLOCK)).flat_map(move |k| {
+        let block = k * BLOCK..((k + 1) * BLOCK).min(a.len());
+        let any = a[block.clone()]
+            .iter()
+            .zip(&b[block.clone()])
+            .fold(false, |any, (&a, &b)| any | ((b - a).abs() > SNAP_JUMP));
+        block.filter(move |&i| any && is_jump(i))
+    })
+}
+
+/// A row (`stride` 1) or all the columns (`stride` = width) of a map and its guide image.
+struct Line<'a> {
+    src: &'a [f32],
+    grey: &'a [u16],
+    stride: usize,
+}
+
+/// The jump between pixels `i - 1` and `i` (`1 <= i < n`) of the line starting at `start`: moves
+/// it across the foreground plateau to the strongest intensity step within `radius`, writing into
+/// `out` (laid out as `line.src`).
+fn snap_jump(line: &Line<'_>, start: usize, n: usize, i: usize, radius: usize, out: &mut [f32]) {
+    let at = |i: usize| start + i * line.stride;
+    let src = |i: usize| line.src[at(i)];
+    // The intensity step between pixels i - 1 and i, in 8-bit grey levels.
+    let grey = |i: usize| f32::from(line.grey[at(i)]) / 257.0;
+    let step = |i: usize| (grey(i) - grey(i - 1)).abs();
     // Whether pixel i still belongs to the plateau of disparity `d` (NaNs do not end it).
-    let on_plateau = |i: usize, d: f32| src[i].is_nan() || (src[i] - d).abs() <= SNAP_JUMP;
-    for x in 1..n {
-        let (a, b) = (src[x - 1], src[x]);
-        if a.is_nan() || b.is_nan() || (b - a).abs() <= SNAP_JUMP {
-            continue;
+    let on_plateau = |i: usize, d: f32| src(i).is_nan() || (src(i) - d).abs() <= SNAP_JUMP;
+    let (x, a, b) = (i, src(i - 1), src(i));
+    let mut best = x;
+    let mut best_step = step(x);
+    if b > a {
+        // Foreground from x on: look right for a stronger edge inside its plateau.
+        for i in x + 1..=(x + radius).min(n - 1) {
+            if !on_plateau(i - 1, b) {
+                break;
+            }
+            let s = step(i);
+            if s > SNAP_MIN_STEP && s > SNAP_RATIO * best_step {
+                best = i;
+                best_step = s;
+            }
         }
-        let mut best = x;
-        let mut best_step = step(x);
-        if b > a {
-            // Foreground from x on: look right for a stronger edge inside its plateau.
-            for i in x + 1..=(x + radius).min(n - 1) {
-                if !on_plateau(i - 1, b) {
-                    break;
-                }
-                let s = step(i);
-                if s > SNAP_MIN_STEP && s > SNAP_RATIO * best_step {
-                    best = i;
-                    best_step = s;
-                }
+        for i in x..best {
+            out[at(i)] = a;
+        }
+    } else {
+        // Foreground up to x - 1: look left.
+        for i in (x.saturating_sub(radius).max(1)..x).rev() {
+            if !on_plateau(i, a) {
+                break;
             }
-            out[x..best].fill(a);
-        } else {
-            // Foreground up to x - 1: look left.
-            for i in (x.saturating_sub(radius).max(1)..x).rev() {
-                if !on_plateau(i, a) {
-                    break;
-                }
-                let s = step(i);
-                if s > SNAP_MIN_STEP && s > SNAP_RATIO * best_step {
-                    best = i;
-                    best_step = s;
-                }
+            let s = step(i);
+            if s > SNAP_MIN_STEP && s > SNAP_RATIO * best_step {
+                best = i;
+                best_step = s;
             }
-            out[best..x].fill(b);
+        }
+        for i in best..x {
+            out[at(i)] = b;
         }
     }
 }
@@ -124,6 +131,108 @@ fn snap_line(src: &[f32], grey: &[f32], radius: usize, out: &mut [f32]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The plain version of [`snap_edges`]: each row, then each column, copied out and snapped
+    /// pixel by pixel (the implementation before the jumps were found a block at a time).
+    fn snap_edges_reference(disparity: &DisparityMap, guide: &GrayImage, radius: usize) -> DisparityMap {
+        let (w, h) = disparity.size();
+        let grey = |x: usize, y: usize| f32::from(guide.get(x, y)) / 257.0;
+        let mut rows = disparity.clone();
+        for y in 0..h {
+            let g: Vec<f32> = (0..w).map(|x| grey(x, y)).collect();
+            snap_line_reference(disparity.row(y), &g, radius, rows.row_mut(y));
+        }
+        let mut snapped = rows.clone();
+        for x in 0..w {
+            let d: Vec<f32> = (0..h).map(|y| rows.get(x, y)).collect();
+            let g: Vec<f32> = (0..h).map(|y| grey(x, y)).collect();
+            let mut out = d.clone();
+            snap_line_reference(&d, &g, radius, &mut out);
+            for (y, v) in out.into_iter().enumerate() {
+                snapped.set(x, y, v);
+            }
+        }
+        snapped
+    }
+
+    fn snap_line_reference(src: &[f32], grey: &[f32], radius: usize, out: &mut [f32]) {
+        let n = src.len();
+        let step = |i: usize| (grey[i] - grey[i - 1]).abs();
+        let on_plateau = |i: usize, d: f32| src[i].is_nan() || (src[i] - d).abs() <= SNAP_JUMP;
+        for x in 1..n {
+            let (a, b) = (src[x - 1], src[x]);
+            if a.is_nan() || b.is_nan() || (b - a).abs() <= SNAP_JUMP {
+                continue;
+            }
+            let mut best = x;
+            let mut best_step = step(x);
+            if b > a {
+                for i in x + 1..=(x + radius).min(n - 1) {
+                    if !on_plateau(i - 1, b) {
+                        break;
+                    }
+                    let s = step(i);
+                    if s > SNAP_MIN_STEP && s > SNAP_RATIO * best_step {
+                        best = i;
+                        best_step = s;
+                    }
+                }
+                out[x..best].fill(a);
+            } else {
+                for i in (x.saturating_sub(radius).max(1)..x).rev() {
+                    if !on_plateau(i, a) {
+                        break;
+                    }
+                    let s = step(i);
+                    if s > SNAP_MIN_STEP && s > SNAP_RATIO * best_step {
+                        best = i;
+                        best_step = s;
+                    }
+                }
+                out[best..x].fill(b);
+            }
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// Random maps of plateaus with holes over random images with edges: the block-wise
+        /// search gives the plain version's map bit for bit.
+        #[test]
+        fn matches_the_plain_line_by_line_version(w in 1usize..70, h in 1usize..50, radius in 0usize..8, seed in proptest::prelude::any::<u64>()) {
+            let mut s = seed | 1;
+            let mut next = move || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s };
+            let mut map = DisparityMap::new(w, h, 10.0);
+            let mut guide = GrayImage::new(w, h, 60 * 257);
+            for _ in 0..(w * h / 30).max(2) {
+                let (x0, y0) = ((next() % w as u64) as usize, (next() % h as u64) as usize);
+                let (rw, rh) = (1 + (next() % 12) as usize, 1 + (next() % 12) as usize);
+                let value = match next() % 6 {
+                    0 => f32::NAN,
+                    k => 5.0 + 3.0 * k as f32 + 0.25 * (next() % 4) as f32,
+                };
+                let level = (next() % 65536) as u16;
+                // Image edges near the region's outline, a pixel or two off at random.
+                let (gx, gy) = (x0 + (next() % 3) as usize, y0 + (next() % 3) as usize);
+                for y in y0..(y0 + rh).min(h) {
+                    for x in x0..(x0 + rw).min(w) {
+                        map.set(x, y, value);
+                    }
+                }
+                for y in gy..(gy + rh).min(h) {
+                    for x in gx..(gx + rw).min(w) {
+                        guide.set(x, y, level);
+                    }
+                }
+            }
+            let fast = snap_edges(&map, &guide, radius);
+            let slow = snap_edges_reference(&map, &guide, radius);
+            for (a, b) in fast.as_slice().iter().zip(slow.as_slice()) {
+                proptest::prop_assert!(a.to_bits() == b.to_bits());
+            }
+        }
+    }
 
     #[test]
     fn a_fattened_edge_moves_onto_the_image_edge() {

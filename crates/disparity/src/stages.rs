@@ -71,6 +71,13 @@ pub fn aggregate_and_select_disparities(
     crate::sgm::aggregate_census(left, None, census_left, census_right, params)
 }
 
+/// The post-processing of a selected map, as [`sgm`](crate::sgm) runs it with `params`: range
+/// ends, the median, border ramps, far islands, speckles, the status image, the fill (with
+/// [`SgmParams::fill`]), edge snapping and the weighted median.
+pub fn post_process(disparity: &DisparityMap, left: &GrayImage, params: &SgmParams) -> DisparityMap {
+    crate::post::finish(disparity.clone(), left, params).disparity
+}
+
 /// The 3×3 median post-filter.
 pub fn median(disparity: &DisparityMap) -> DisparityMap {
     crate::filter::median_3x3(disparity)
