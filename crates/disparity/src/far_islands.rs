@@ -227,7 +227,7 @@ fn surroundings(disparity: &DisparityMap, range: DisparityRange, from_column: us
     table[stride..].par_chunks_mut(stride).zip(disparity.as_slice().par_chunks(TILE * w)).for_each(
         |(counts, pixels)| {
             for row in pixels.chunks_exact(w) {
-                for (x, &v) in row.iter().enumerate().skip(from_column) {
+                for (x, &v) in (from_column..).zip(&row[from_column.min(w)..]) {
                     if v.is_finite() {
                         let b = ((floor(v) - range.min as i64).clamp(0, bins as i64 - 1)) as usize;
                         counts[(x / TILE + 1) * bins + b] += 1;
@@ -236,11 +236,17 @@ fn surroundings(disparity: &DisparityMap, range: DisparityRange, from_column: us
             }
         },
     );
+    // The sums over the tiles above and to the left, a row of tiles at a time (separate slices
+    // for the row above and this row, so the bins' loop is vectorised).
     for ty in 1..=th {
+        let (above, rest) = table.split_at_mut(ty * stride);
+        let (up, cur) = (&above[(ty - 1) * stride..], &mut rest[..stride]);
         for tx in 1..=tw {
-            let (cur, up) = (ty * stride + tx * bins, (ty - 1) * stride + tx * bins);
+            let (left, here) = cur.split_at_mut(tx * bins);
+            let (left, here) = (&left[(tx - 1) * bins..], &mut here[..bins]);
+            let (up_left, up) = (&up[(tx - 1) * bins..tx * bins], &up[tx * bins..(tx + 1) * bins]);
             for b in 0..bins {
-                table[cur + b] += table[cur - bins + b] + table[up + b] - table[up - bins + b];
+                here[b] += left[b] + up[b] - up_left[b];
             }
         }
     }
@@ -251,13 +257,12 @@ fn surroundings(disparity: &DisparityMap, range: DisparityRange, from_column: us
         let (y0, y1) = (ty.saturating_sub(reach), (ty + reach + 1).min(th));
         for tx in 0..tw {
             let (x0, x1) = (tx.saturating_sub(reach), (tx + reach + 1).min(tw));
-            let at = |y: usize, x: usize| y * stride + x * bins;
+            let at = |y: usize, x: usize| &table[y * stride + x * bins..y * stride + (x + 1) * bins];
             let (a, b, c, e) = (at(y1, x1), at(y0, x1), at(y1, x0), at(y0, x0));
-            let mut total = 0u64;
             for (i, hb) in hist.iter_mut().enumerate() {
-                *hb = table[a + i] + table[e + i] - table[b + i] - table[c + i];
-                total += u64::from(*hb);
+                *hb = a[i] + e[i] - b[i] - c[i];
             }
+            let total: u64 = hist.iter().map(|&n| u64::from(n)).sum();
             if total < MAX_ISLAND as u64 {
                 continue;
             }
