@@ -27,18 +27,23 @@ pub(crate) fn downsample(image: &GrayImage, factor: usize) -> GrayImage {
     // factors 2 and 4): the same integer, without a division per pixel.
     let mean = |s: u64| if n.is_power_of_two() { (s + n / 2) >> n.trailing_zeros() } else { (s + n / 2) / n };
     let mut data = vec![0u16; cw * ch];
-    data.par_chunks_mut(cw.max(1)).enumerate().for_each(|(y, out)| {
-        let mut columns = vec![0u64; cw * factor];
-        for yy in y * factor..(y + 1) * factor {
-            for (c, &v) in columns.iter_mut().zip(image.row(yy)) {
-                *c += u64::from(v);
+    // Column sums in u32: a factor up to 256 sums at most 2^16 samples of 16 bits per block.
+    assert!(factor <= 256, "downsampling factor {factor}");
+    data.par_chunks_mut(cw.max(1)).enumerate().for_each_init(
+        || vec![0u32; cw * factor],
+        |columns, (y, out)| {
+            columns.fill(0);
+            for yy in y * factor..(y + 1) * factor {
+                for (c, &v) in columns.iter_mut().zip(image.row(yy)) {
+                    *c += u32::from(v);
+                }
             }
-        }
-        for (o, block) in out.iter_mut().zip(columns.chunks_exact(factor)) {
-            let sum: u64 = block.iter().sum();
-            *o = if byte_scaled { (mean(sum / 257) * 257) as u16 } else { mean(sum) as u16 };
-        }
-    });
+            for (o, block) in out.iter_mut().zip(columns.chunks_exact(factor)) {
+                let sum = u64::from(block.iter().sum::<u32>());
+                *o = if byte_scaled { (mean(sum / 257) * 257) as u16 } else { mean(sum) as u16 };
+            }
+        },
+    );
     GrayImage::from_vec(cw, ch, data).expect("cw * ch samples")
 }
 

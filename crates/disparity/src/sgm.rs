@@ -232,16 +232,26 @@ fn gradient_energy(image: &GrayImage) -> f64 {
     }
     let rows: Vec<f64> = (0..h - 1)
         .into_par_iter()
-        .map(|y| {
-            let (row, below) = (image.row(y), image.row(y + 1));
-            // A squared step of 16-bit samples fits in u32; the integer sum is order-free.
-            let square = |a: u16, b: u16| u64::from(u32::from(a.abs_diff(b)).pow(2));
-            let vertical: u64 = row.iter().zip(below).map(|(&a, &b)| square(a, b)).sum();
-            let horizontal: u64 = row.windows(2).map(|p| square(p[0], p[1])).sum();
-            (vertical + horizontal) as f64
-        })
+        .map(|y| row_gradient_energy(image.row(y), image.row(y + 1)) as f64)
         .collect();
     rows.iter().sum::<f64>() / ((w * (h - 1) + (w - 1) * (h - 1)) as f64)
+}
+
+/// The squared steps from each pixel of `row` to the one below it and to its right neighbour,
+/// summed: an integer, so the same however it is vectorised.
+#[inline(always)]
+fn row_gradient_energy_generic(row: &[u16], below: &[u16], _level: crate::kernels::Level) -> u64 {
+    // A squared step of 16-bit samples fits in u32.
+    let square = |a: u16, b: u16| u64::from(u32::from(a.abs_diff(b)).pow(2));
+    let vertical: u64 = row.iter().zip(below).map(|(&a, &b)| square(a, b)).sum();
+    let horizontal: u64 = row[..row.len() - 1].iter().zip(&row[1..]).map(|(&a, &b)| square(a, b)).sum();
+    vertical + horizontal
+}
+
+crate::kernels::multiversion! {
+    /// [`row_gradient_energy_generic`] compiled for the detected level (the 32-bit products
+    /// vectorise only with AVX2 or later).
+    fn row_gradient_energy(row: &[u16], below: &[u16]) -> u64 => row_gradient_energy_generic;
 }
 
 /// [`SgmParams::downscale`]: the pair reduced by the factor `f` (box filter, as the coarse
@@ -323,10 +333,20 @@ fn replicate<T: Copy + Send + Sync>(
     let small_height = small.len() / small_width;
     let widen = |y: usize, row: &mut [T]| {
         let at = (y / f).min(small_height - 1) * small_width;
-        for (sx, &v) in small[at..at + small_width].iter().enumerate() {
-            let end = if sx + 1 < small_width { (sx + 1) * f } else { width };
-            row[sx * f..end].fill(v);
+        let small_row = &small[at..at + small_width];
+        // Whole blocks of `f` (a loop the compiler unrolls for the usual factors), then the tail.
+        let blocks = (small_width - 1) * f;
+        match f {
+            2 => widen_by::<T, 2>(small_row, &mut row[..blocks]),
+            3 => widen_by::<T, 3>(small_row, &mut row[..blocks]),
+            4 => widen_by::<T, 4>(small_row, &mut row[..blocks]),
+            _ => {
+                for (block, &v) in row[..blocks].chunks_exact_mut(f).zip(small_row) {
+                    block.fill(v);
+                }
+            }
         }
+        row[blocks..].fill(small_row[small_width - 1]);
     };
     let mut out = vec![small[0]; width * height];
     let whole = height / f * f;
@@ -342,6 +362,14 @@ fn replicate<T: Copy + Send + Sync>(
         widen(whole + i, row);
     }
     Image::from_vec(width, height, out).expect("width * height samples")
+}
+
+/// `out` (`F` entries per entry of `small`, as many as fit) with each entry of `small` repeated.
+#[inline(always)]
+fn widen_by<T: Copy, const F: usize>(small: &[T], out: &mut [T]) {
+    for (block, &v) in out.chunks_exact_mut(F).zip(small) {
+        *<&mut [T; F]>::try_from(block).expect("F entries") = [v; F];
+    }
 }
 
 /// What [`SgmParams::adapt_to_pair`] does before aggregation, shared by the matcher and its scalar

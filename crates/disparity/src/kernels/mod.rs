@@ -213,21 +213,21 @@ fn detect() -> Features {
     })
 }
 
-/// Defines `fn $name(args)` that runs the `#[inline(always)]` generic body `$generic(args,
+/// Defines `fn $name(args) [-> ret]` that runs the `#[inline(always)]` generic body `$generic(args,
 /// level)` compiled for the detected level: one `#[target_feature]` copy per SIMD level, so the
 /// kernels called with that `level` inline into it.
 macro_rules! multiversion {
     ($(#[$attr:meta])* $vis:vis fn $name:ident $(<$($g:ident: $bound:path),*>)?
-     ($($arg:ident: $ty:ty),* $(,)?) => $generic:path;) => {
+     ($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? => $generic:path;) => {
         $(#[$attr])*
         #[allow(clippy::too_many_arguments)]
-        $vis fn $name $(<$($g: $bound),*>)? ($($arg: $ty),*) {
+        $vis fn $name $(<$($g: $bound),*>)? ($($arg: $ty),*) $(-> $ret)? {
             /// # Safety
             /// The CPU must have AVX-512F/BW/VL.
             #[cfg(target_arch = "x86_64")]
             #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx2,popcnt")]
             #[allow(clippy::too_many_arguments)]
-            unsafe fn avx512 $(<$($g: $bound),*>)? ($($arg: $ty),*) {
+            unsafe fn avx512 $(<$($g: $bound),*>)? ($($arg: $ty),*) $(-> $ret)? {
                 $generic($($arg),*, $crate::kernels::Level::Avx512)
             }
             /// # Safety
@@ -235,7 +235,7 @@ macro_rules! multiversion {
             #[cfg(target_arch = "x86_64")]
             #[target_feature(enable = "avx2,popcnt")]
             #[allow(clippy::too_many_arguments)]
-            unsafe fn avx2 $(<$($g: $bound),*>)? ($($arg: $ty),*) {
+            unsafe fn avx2 $(<$($g: $bound),*>)? ($($arg: $ty),*) $(-> $ret)? {
                 $generic($($arg),*, $crate::kernels::Level::Avx2)
             }
             match $crate::kernels::features().level {
