@@ -384,7 +384,20 @@ pub(crate) fn adapt_to_pair(
     census: impl Fn(&GrayImage, crate::CensusWindow, u16, &mut Image<u64>) + Sync,
 ) -> Adapted {
     let (width, height) = left.size();
-    let coarse = params.adapt_to_pair.then(|| CoarseMatch::new(left, right, params, sgm)).flatten();
+    let mut census_left = Image::new(width, height, 0u64);
+    let mut census_right = Image::new(width, height, 0u64);
+    // The census of the views as given (the pair's noise is measured on them: clipped alike, the
+    // flat areas would match perfectly and hide it) beside the coarse match, which is too small
+    // to keep both threads busy.
+    let (coarse, _) = rayon::join(
+        || params.adapt_to_pair.then(|| CoarseMatch::new(left, right, params, sgm)).flatten(),
+        || {
+            rayon::join(
+                || census(left, params.census, 0, &mut census_left),
+                || census(right, params.census, 0, &mut census_right),
+            )
+        },
+    );
     let radiometric_difference = coarse.as_ref().and_then(|c| c.radiometric_difference(None));
     let wants_intensity_term = matches!(params.matching_cost, MatchingCost::AdCensus { .. });
     let differs = views_differ(radiometric_difference);
@@ -411,14 +424,6 @@ pub(crate) fn adapt_to_pair(
     let corrected_right = corrected.and_then(|(view, d)| (d <= MAX_CORRECTED_DIFFERENCE).then_some(view));
     let intensity_term = wants_intensity_term && (!differs || corrected_right.is_some());
     let matching_cost = if intensity_term { params.matching_cost } else { MatchingCost::Census };
-    let mut census_left = Image::new(width, height, 0u64);
-    let mut census_right = Image::new(width, height, 0u64);
-    // The pair's noise is measured on the views as given: clipped alike, the flat areas would
-    // match perfectly and hide it.
-    rayon::join(
-        || census(input_left, params.census, 0, &mut census_left),
-        || census(input_right, params.census, 0, &mut census_right),
-    );
     let residual = coarse.as_ref().and_then(|c| c.census_residual(&census_left, &census_right));
     if clipped.is_some() {
         rayon::join(
