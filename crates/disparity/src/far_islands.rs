@@ -68,15 +68,28 @@ pub(crate) fn reject_far_islands(disparity: &mut DisparityMap, range: DisparityR
     if w == 0 || h == 0 || range.count() == 0 {
         return 0;
     }
-    let reference = surroundings(disparity, range, 0);
-    let scene = Behind { reference: &reference, tiles_wide: w.div_ceil(TILE), columns: w };
-    let mut rejected = reject_islands(disparity, &scene, MAX_ISLAND, invalid);
     let band = (range.max.max(0) as usize).min(w);
-    if band > 0 && band < w {
-        let reference = surroundings(disparity, range, band);
+    let judges_band = band > 0 && band < w;
+    // The histograms are counted once: the second pass's (the columns outside the band, after
+    // the first pass) are the first's less the band's columns and less what the first rejected.
+    let counts = TileCounts::new(disparity, range);
+    let band_counts = judges_band.then(|| TileCounts::of_columns(disparity, range, band));
+    let scene = Behind { reference: &counts.surroundings(), tiles_wide: w.div_ceil(TILE), columns: w };
+    let mut removed = Vec::new();
+    let mut rejected = reject_islands(disparity, &scene, MAX_ISLAND, invalid, &mut removed);
+    if let Some(band_counts) = band_counts {
+        let mut outside_counts = counts;
+        outside_counts.subtract(&band_counts);
+        for &(p, v) in &removed {
+            let p = p as usize;
+            if p % w >= band {
+                outside_counts.remove(p % w, p / w, v);
+            }
+        }
+        let reference = outside_counts.surroundings();
         let outside = Behind { reference: &reference, tiles_wide: w.div_ceil(TILE), columns: band };
-        rejected +=
-            reject_islands(disparity, &outside, (band * h / BAND_ISLAND_SHARE).max(MAX_ISLAND), invalid);
+        let max_island = (band * h / BAND_ISLAND_SHARE).max(MAX_ISLAND);
+        rejected += reject_islands(disparity, &outside, max_island, invalid, &mut removed);
     }
     rejected
 }
@@ -102,6 +115,7 @@ fn reject_islands(
     behind: &Behind<'_>,
     max_island: usize,
     invalid: f32,
+    removed: &mut Vec<(u32, f32)>,
 ) -> usize {
     let (w, h) = disparity.size();
     let d = disparity.as_mut_slice();
@@ -122,14 +136,21 @@ fn reject_islands(
     let mut rejected = 0;
     // The pixels that could start an island, found in parallel (row by row), in the order the
     // searches take them. Rejection only turns pixels invalid, which makes no new start.
+    // A tile's stretch of a row is tested at once (vectorised) and searched only if it holds one.
     let starts: Vec<u32> = d
         .par_chunks_exact(w)
         .enumerate()
         .flat_map_iter(|(y, row)| {
-            row[..behind.columns]
-                .iter()
-                .enumerate()
-                .filter_map(move |(x, &v)| behind.at(x, y, v).then_some((y * w + x) as u32))
+            let references = &behind.reference[(y / TILE) * behind.tiles_wide..];
+            row[..behind.columns].chunks(TILE).zip(references).enumerate().flat_map(
+                move |(t, (stretch, &r))| {
+                    let any = stretch.iter().fold(false, |any, &v| any | behind_of(r, v));
+                    let x0 = t * TILE;
+                    stretch.iter().enumerate().filter_map(move |(j, &v)| {
+                        (any && behind_of(r, v)).then_some((y * w + x0 + j) as u32)
+                    })
+                },
+            )
         })
         .collect();
     for start in starts {
@@ -178,6 +199,7 @@ fn reject_islands(
         }
         if is_island && 2 * far_pixels >= island.len() {
             for &p in &island {
+                removed.push((p, d[p as usize]));
                 d[p as usize] = invalid;
             }
             rejected += island.len();
@@ -197,6 +219,12 @@ fn behind(r: f32, v: f32) -> bool {
     r > 0.0 && v.is_finite() && 2.0 * v < r
 }
 
+/// [`behind`] without branches, for the vectorised tests (`v.abs() < ∞` is `v.is_finite()`).
+#[inline(always)]
+fn behind_of(r: f32, v: f32) -> bool {
+    (r > 0.0) & (v.abs() < f32::INFINITY) & (2.0 * v < r)
+}
+
 /// `v.floor() as i64` for a finite `v` within `i64`, without the library call that `f32::floor`
 /// becomes on baseline x86-64 (no SSE4.1 rounding): once per pixel.
 #[inline(always)]
@@ -211,74 +239,121 @@ pub(crate) fn reject_far_islands_tagged(disparity: &mut DisparityMap, range: Dis
     reject_far_islands(disparity, range, tagged_nan(PixelStatus::FarIsland))
 }
 
-/// Per tile, the median valid disparity of the pixels at `from_column` or right of it in the
-/// window of tiles within the reach ([`MIN_REACH`], or the largest disparity) of it (0 when the
-/// window holds fewer than [`MAX_ISLAND`] such pixels): per-tile histograms of the integer
-/// disparity, summed over the window through a summed-area table, the median interpolated within
-/// its bin.
-fn surroundings(disparity: &DisparityMap, range: DisparityRange, from_column: usize) -> Vec<f32> {
-    let (w, h) = disparity.size();
-    let bins = range.count();
-    let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
-    // table[((ty * (tw + 1)) + tx) * bins + b]: pixels of bin b in tiles above-left of (tx, ty).
-    let stride = (tw + 1) * bins;
-    let mut table = vec![0u32; (th + 1) * stride];
-    // Each row of tiles counts into its own row of the table.
-    table[stride..].par_chunks_mut(stride).zip(disparity.as_slice().par_chunks(TILE * w)).for_each(
-        |(counts, pixels)| {
-            for row in pixels.chunks_exact(w) {
-                for (x, &v) in (from_column..).zip(&row[from_column.min(w)..]) {
-                    if v.is_finite() {
-                        let b = ((floor(v) - range.min as i64).clamp(0, bins as i64 - 1)) as usize;
-                        counts[(x / TILE + 1) * bins + b] += 1;
+/// Per tile of [`TILE`] × [`TILE`] pixels, how many valid pixels hold each integer disparity of
+/// the range (clamped into it), laid out for [`TileCounts::surroundings`]'s summed-area table:
+/// `counts[((ty + 1) * (tw + 1) + tx + 1) * bins + b]`, a zero row and column before the tiles.
+struct TileCounts {
+    counts: Vec<u32>,
+    range: DisparityRange,
+    tiles: (usize, usize),
+}
+
+impl TileCounts {
+    /// The counts of every pixel.
+    fn new(disparity: &DisparityMap, range: DisparityRange) -> Self {
+        Self::of_columns(disparity, range, disparity.width())
+    }
+
+    /// The counts of the pixels in columns `0..columns`.
+    fn of_columns(disparity: &DisparityMap, range: DisparityRange, columns: usize) -> Self {
+        let (w, h) = disparity.size();
+        let bins = range.count();
+        let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
+        let stride = (tw + 1) * bins;
+        let mut counts = vec![0u32; (th + 1) * stride];
+        let (min, last) = (range.min as i64, bins as i64 - 1);
+        // Each row of tiles counts into its own row of the table.
+        counts[stride..].par_chunks_mut(stride).zip(disparity.as_slice().par_chunks(TILE * w)).for_each(
+            |(counts, pixels)| {
+                for row in pixels.chunks_exact(w) {
+                    for (x, &v) in row[..columns].iter().enumerate() {
+                        if v.is_finite() {
+                            counts[(x / TILE + 1) * bins + (floor(v) - min).clamp(0, last) as usize] += 1;
+                        }
                     }
                 }
-            }
-        },
-    );
-    // The sums over the tiles above and to the left, a row of tiles at a time (separate slices
-    // for the row above and this row, so the bins' loop is vectorised).
-    for ty in 1..=th {
-        let (above, rest) = table.split_at_mut(ty * stride);
-        let (up, cur) = (&above[(ty - 1) * stride..], &mut rest[..stride]);
-        for tx in 1..=tw {
-            let (left, here) = cur.split_at_mut(tx * bins);
-            let (left, here) = (&left[(tx - 1) * bins..], &mut here[..bins]);
-            let (up_left, up) = (&up[(tx - 1) * bins..tx * bins], &up[tx * bins..(tx + 1) * bins]);
-            for b in 0..bins {
-                here[b] += left[b] + up[b] - up_left[b];
-            }
+            },
+        );
+        TileCounts { counts, range, tiles: (tw, th) }
+    }
+
+    /// Removes the pixels `other` counted (a subset of these).
+    fn subtract(&mut self, other: &TileCounts) {
+        for (a, b) in self.counts.iter_mut().zip(&other.counts) {
+            *a -= b;
         }
     }
-    let reach = MIN_REACH.max((range.max.max(0) as usize).div_ceil(TILE));
-    let mut hist = vec![0u32; bins];
-    let mut out = vec![0.0f32; tw * th];
-    for ty in 0..th {
-        let (y0, y1) = (ty.saturating_sub(reach), (ty + reach + 1).min(th));
-        for tx in 0..tw {
-            let (x0, x1) = (tx.saturating_sub(reach), (tx + reach + 1).min(tw));
-            let at = |y: usize, x: usize| &table[y * stride + x * bins..y * stride + (x + 1) * bins];
-            let (a, b, c, e) = (at(y1, x1), at(y0, x1), at(y1, x0), at(y0, x0));
-            for (i, hb) in hist.iter_mut().enumerate() {
-                *hb = a[i] + e[i] - b[i] - c[i];
-            }
-            let total: u64 = hist.iter().map(|&n| u64::from(n)).sum();
-            if total < MAX_ISLAND as u64 {
-                continue;
-            }
-            let half = total as f32 / 2.0;
-            let mut below = 0.0f32;
-            for (i, &hb) in hist.iter().enumerate() {
-                let n = hb as f32;
-                if below + n >= half {
-                    out[ty * tw + tx] = range.min as f32 + i as f32 + (half - below) / n;
-                    break;
+
+    /// Removes the valid pixel `(x, y)` of disparity `v`.
+    fn remove(&mut self, x: usize, y: usize, v: f32) {
+        let bins = self.range.count();
+        let b = (floor(v) - self.range.min as i64).clamp(0, bins as i64 - 1) as usize;
+        self.counts[((y / TILE + 1) * (self.tiles.0 + 1) + x / TILE + 1) * bins + b] -= 1;
+    }
+
+    /// Per tile, the median valid disparity of the counted pixels in the window of tiles within
+    /// the reach ([`MIN_REACH`], or the largest disparity) of it (0 when the window holds fewer
+    /// than [`MAX_ISLAND`] of them): the tiles' histograms summed over the window through a
+    /// summed-area table, the median interpolated within its bin.
+    fn surroundings(&self) -> Vec<f32> {
+        let (range, (tw, th)) = (self.range, self.tiles);
+        let bins = range.count();
+        // table[((ty * (tw + 1)) + tx) * bins + b]: pixels of bin b in tiles above-left of (tx, ty).
+        let stride = (tw + 1) * bins;
+        let mut table = self.counts.clone();
+        // The sums over the tiles above and to the left, a row of tiles at a time (separate slices
+        // for the row above and this row, so the bins' loop is vectorised).
+        for ty in 1..=th {
+            let (above, rest) = table.split_at_mut(ty * stride);
+            let (up, cur) = (&above[(ty - 1) * stride..], &mut rest[..stride]);
+            for tx in 1..=tw {
+                let (left, here) = cur.split_at_mut(tx * bins);
+                let (left, here) = (&left[(tx - 1) * bins..], &mut here[..bins]);
+                let (up_left, up) = (&up[(tx - 1) * bins..tx * bins], &up[tx * bins..(tx + 1) * bins]);
+                for b in 0..bins {
+                    here[b] += left[b] + up[b] - up_left[b];
                 }
-                below += n;
             }
         }
+        let reach = MIN_REACH.max((range.max.max(0) as usize).div_ceil(TILE));
+        let mut hist = vec![0u32; bins];
+        let mut out = vec![0.0f32; tw * th];
+        for ty in 0..th {
+            let (y0, y1) = (ty.saturating_sub(reach), (ty + reach + 1).min(th));
+            for tx in 0..tw {
+                let (x0, x1) = (tx.saturating_sub(reach), (tx + reach + 1).min(tw));
+                let at = |y: usize, x: usize| &table[y * stride + x * bins..y * stride + (x + 1) * bins];
+                let (a, b, c, e) = (at(y1, x1), at(y0, x1), at(y1, x0), at(y0, x0));
+                for (i, hb) in hist.iter_mut().enumerate() {
+                    *hb = a[i] + e[i] - b[i] - c[i];
+                }
+                let total: u64 = hist.iter().map(|&n| u64::from(n)).sum();
+                if total < MAX_ISLAND as u64 {
+                    continue;
+                }
+                let half = total as f32 / 2.0;
+                let mut below = 0.0f32;
+                for (i, &hb) in hist.iter().enumerate() {
+                    let n = hb as f32;
+                    if below + n >= half {
+                        out[ty * tw + tx] = range.min as f32 + i as f32 + (half - below) / n;
+                        break;
+                    }
+                    below += n;
+                }
+            }
+        }
+        out
     }
-    out
+}
+
+/// The reference of [`TileCounts::surroundings`]: the medians of the pixels at `from_column` or
+/// right of it, counted anew.
+#[cfg(test)]
+fn surroundings(disparity: &DisparityMap, range: DisparityRange, from_column: usize) -> Vec<f32> {
+    let mut counts = TileCounts::new(disparity, range);
+    counts.subtract(&TileCounts::of_columns(disparity, range, from_column));
+    counts.surroundings()
 }
 
 #[cfg(test)]
