@@ -22,10 +22,6 @@ pub(crate) fn downsample(image: &GrayImage, factor: usize) -> GrayImage {
     let factor = factor.max(1);
     let (cw, ch) = (w / factor, h / factor);
     let byte_scaled = crate::census::is_byte_scaled(image);
-    let n = (factor * factor) as u64;
-    // The rounded mean `(s + n / 2) / n`, by a shift where `n` is a power of two (the usual
-    // factors 2 and 4): the same integer, without a division per pixel.
-    let mean = |s: u64| if n.is_power_of_two() { (s + n / 2) >> n.trailing_zeros() } else { (s + n / 2) / n };
     let mut data = vec![0u16; cw * ch];
     // Column sums in u32: a factor up to 256 sums at most 2^16 samples of 16 bits per block.
     assert!(factor <= 256, "downsampling factor {factor}");
@@ -38,13 +34,43 @@ pub(crate) fn downsample(image: &GrayImage, factor: usize) -> GrayImage {
                     *c += u32::from(v);
                 }
             }
-            for (o, block) in out.iter_mut().zip(columns.chunks_exact(factor)) {
-                let sum = u64::from(block.iter().sum::<u32>());
-                *o = if byte_scaled { (mean(sum / 257) * 257) as u16 } else { mean(sum) as u16 };
+            // The usual factors with the block size known to the compiler (unrolled sums, a
+            // shift for the mean).
+            match factor {
+                2 => block_means::<2>(columns, out, byte_scaled),
+                3 => block_means::<3>(columns, out, byte_scaled),
+                4 => block_means::<4>(columns, out, byte_scaled),
+                _ => {
+                    for (o, block) in out.iter_mut().zip(columns.chunks_exact(factor)) {
+                        *o = block_mean(block.iter().sum(), factor * factor, byte_scaled);
+                    }
+                }
             }
         },
     );
     GrayImage::from_vec(cw, ch, data).expect("cw * ch samples")
+}
+
+/// [`downsample`]'s output row from its column sums, `F` columns per output sample.
+#[inline(always)]
+fn block_means<const F: usize>(columns: &[u32], out: &mut [u16], byte_scaled: bool) {
+    for (o, block) in out.iter_mut().zip(columns.chunks_exact(F)) {
+        let block: &[u32; F] = block.try_into().expect("F columns");
+        *o = block_mean(block.iter().sum(), F * F, byte_scaled);
+    }
+}
+
+/// The rounded mean of `n` samples summing to `sum` (`(s + n / 2) / n`; a shift where `n` is a
+/// power of two), for 8-bit samples stored ×257 the mean of the 8-bit values, stored ×257.
+#[inline(always)]
+fn block_mean(sum: u32, n: usize, byte_scaled: bool) -> u16 {
+    let n = n as u32;
+    let mean = |s: u32| if n.is_power_of_two() { (s + n / 2) >> n.trailing_zeros() } else { (s + n / 2) / n };
+    if byte_scaled {
+        (mean(sum / 257) * 257) as u16
+    } else {
+        mean(sum) as u16
+    }
 }
 
 /// The largest [`radiometric_difference`] (8-bit grey levels) at which AD-census keeps its
@@ -451,6 +477,33 @@ pub(crate) fn relative_blur(left: &GrayImage, right: &GrayImage) -> Option<(bool
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// Every factor, 16-bit and 8-bit (×257) samples: the rounded mean of each whole block,
+        /// summed plainly.
+        #[test]
+        fn downsample_is_the_rounded_block_mean(w in 1usize..40, h in 1usize..30, factor in 1usize..7, bytes in proptest::prelude::any::<bool>(), seed in proptest::prelude::any::<u64>()) {
+            let mut s = seed | 1;
+            let mut next = move || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s };
+            let image = GrayImage::from_fn(w, h, |_, _| {
+                let v = next() as u16;
+                if bytes { (v & 0xff) * 257 } else { v }
+            });
+            let small = downsample(&image, factor);
+            let n = (factor * factor) as u64;
+            // (A small random 16-bit image can be ×257 throughout by chance.)
+            let bytes = image.as_slice().iter().all(|&v| v >> 8 == v & 0xff);
+            for (y, x) in (0..h / factor).flat_map(|y| (0..w / factor).map(move |x| (y, x))) {
+                let sum: u64 = (0..factor * factor)
+                    .map(|i| u64::from(image.get(x * factor + i % factor, y * factor + i / factor)))
+                    .sum();
+                let expected = if bytes { (sum / 257 + n / 2) / n * 257 } else { (sum + n / 2) / n };
+                proptest::prop_assert_eq!(u64::from(small.get(x, y)), expected);
+            }
+        }
+    }
 
     fn texture(w: usize, h: usize) -> GrayImage {
         GrayImage::from_fn(w, h, |x, y| {
