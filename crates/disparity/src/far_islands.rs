@@ -105,7 +105,7 @@ struct Behind<'r> {
 impl Behind<'_> {
     #[inline(always)]
     fn at(&self, x: usize, y: usize, v: f32) -> bool {
-        x < self.columns && behind(self.reference[(y / TILE) * self.tiles_wide + x / TILE], v)
+        x < self.columns && far_behind(self.reference[(y / TILE) * self.tiles_wide + x / TILE], v)
     }
 }
 
@@ -144,10 +144,10 @@ fn reject_islands(
             let references = &behind.reference[(y / TILE) * behind.tiles_wide..];
             row[..behind.columns].chunks(TILE).zip(references).enumerate().flat_map(
                 move |(t, (stretch, &r))| {
-                    let any = stretch.iter().fold(false, |any, &v| any | behind_of(r, v));
+                    let any = stretch.iter().fold(false, |any, &v| any | far_behind(r, v));
                     let x0 = t * TILE;
                     stretch.iter().enumerate().filter_map(move |(j, &v)| {
-                        (any && behind_of(r, v)).then_some((y * w + x0 + j) as u32)
+                        (any && far_behind(r, v)).then_some((y * w + x0 + j) as u32)
                     })
                 },
             )
@@ -213,15 +213,10 @@ fn reject_islands(
 }
 
 /// Whether disparity `v` lies more than twice as far as the surroundings' median disparity `r`
-/// (0: surroundings unknown).
+/// (0: surroundings unknown). Without branches, so that the island starts' test over a stretch
+/// of a row is vectorised (`v.abs() < ∞` is `v.is_finite()`).
 #[inline(always)]
-fn behind(r: f32, v: f32) -> bool {
-    r > 0.0 && v.is_finite() && 2.0 * v < r
-}
-
-/// [`behind`] without branches, for the vectorised tests (`v.abs() < ∞` is `v.is_finite()`).
-#[inline(always)]
-fn behind_of(r: f32, v: f32) -> bool {
+fn far_behind(r: f32, v: f32) -> bool {
     (r > 0.0) & (v.abs() < f32::INFINITY) & (2.0 * v < r)
 }
 
@@ -231,6 +226,13 @@ fn behind_of(r: f32, v: f32) -> bool {
 fn floor(v: f32) -> i64 {
     let t = v as i64;
     t - i64::from((t as f32) > v)
+}
+
+/// The histogram bin of the finite disparity `v`: its integer part's place in the range,
+/// clamped into it.
+#[inline(always)]
+fn bin(v: f32, range: DisparityRange) -> usize {
+    (floor(v) - range.min as i64).clamp(0, range.count() as i64 - 1) as usize
 }
 
 /// [`reject_far_islands`] inside the SGM pipeline: the rejected pixels tagged
@@ -261,14 +263,13 @@ impl TileCounts {
         let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
         let stride = (tw + 1) * bins;
         let mut counts = vec![0u32; (th + 1) * stride];
-        let (min, last) = (range.min as i64, bins as i64 - 1);
         // Each row of tiles counts into its own row of the table.
         counts[stride..].par_chunks_mut(stride).zip(disparity.as_slice().par_chunks(TILE * w)).for_each(
             |(counts, pixels)| {
                 for row in pixels.chunks_exact(w) {
                     for (x, &v) in row[..columns].iter().enumerate() {
                         if v.is_finite() {
-                            counts[(x / TILE + 1) * bins + (floor(v) - min).clamp(0, last) as usize] += 1;
+                            counts[(x / TILE + 1) * bins + bin(v, range)] += 1;
                         }
                     }
                 }
@@ -286,9 +287,8 @@ impl TileCounts {
 
     /// Removes the valid pixel `(x, y)` of disparity `v`.
     fn remove(&mut self, x: usize, y: usize, v: f32) {
-        let bins = self.range.count();
-        let b = (floor(v) - self.range.min as i64).clamp(0, bins as i64 - 1) as usize;
-        self.counts[((y / TILE + 1) * (self.tiles.0 + 1) + x / TILE + 1) * bins + b] -= 1;
+        let at = ((y / TILE + 1) * (self.tiles.0 + 1) + x / TILE + 1) * self.range.count();
+        self.counts[at + bin(v, self.range)] -= 1;
     }
 
     /// Per tile, the median valid disparity of the counted pixels in the window of tiles within
