@@ -176,11 +176,12 @@ proptest! {
 
     /// The 8-bit cost row equals the narrowed `u16` row (costs for `k < nd`, [`PAD_U8`]
     /// after) on every level, for widths, disparity counts (multiples of 32 or not, up to
-    /// 256) and offsets (negative, past the width) that exercise interior and border pixels,
+    /// 256) and offsets (negative, past the width) that exercise interior and border pixels
+    /// (rows up to 600 wide, so that the lean columns of up to 256 lanes occur),
     /// with and without the AD term.
     #[test]
     fn cost_row_u8_kernels_match_the_narrowed_scalar_reference(
-        width in 1usize..200, nd in prop_oneof![1usize..=64, 1usize..=256],
+        width in prop_oneof![1usize..200, 200usize..600], nd in prop_oneof![1usize..=64, 1usize..=256],
         min in prop_oneof![-8i32..8, -300i32..300], seed in any::<u64>(), worst in 9u16..=64,
         ad in any::<Option<(u8, u8)>>(), step in 1u64..20000,
     ) {

@@ -386,7 +386,10 @@ impl CostConsts {
 /// merged pairwise into disparity order by four two-register byte permutations (VBMI; fewer
 /// instructions than packing by shifts and permuting once) and three byte blends; the AD term stays in bytes (`min(weight · BT, cap)` is a 128-entry
 /// table lookup, one two-register byte permutation, since the cap is at most 127); then the
-/// worst cost and padding by masked moves and stores that never split a cache line.
+/// worst cost and padding by masked moves and stores that never split a cache line. The columns
+/// whose loads all lie inside the row (all but a band of about `nd` at the left border) run
+/// [`cost_columns_u8_lean`], the same steps without the per-pixel bounds and masks, which took
+/// most of this kernel's time (docs/perf-notes.md).
 ///
 /// # Safety
 /// The CPU must have AVX-512F/BW/VL, VPOPCNTDQ and VBMI; lengths and bounds as checked by
@@ -403,31 +406,13 @@ pub(super) unsafe fn cost_row_u8_avx512(
 ) {
     let width = left.len();
     let lanes = padded_lanes_u8(nd);
-    let pad = _mm512_set1_epi8(PAD_U8 as i8);
-    let worst = _mm512_set1_epi8(worst as i8);
-    // Load j's lane i (byte 8i of its popcounts) is disparity k + 8j + 7 - i; byte m of a
-    // pair of loads (2a, 2a + 1) is disparity k + 16a + m % 16 for the m whose `m / 16 == a`,
-    // from the first (index bit 6 clear) or second load of the pair by bit 3 of m.
-    let unpack = {
-        let mut idx = [0u8; 64];
-        for (m, v) in idx.iter_mut().enumerate() {
-            *v = (8 * (7 - m % 8) + 64 * ((m / 8) % 2)) as u8;
-        }
-        _mm512_loadu_si512(idx.as_ptr().cast())
-    };
-    // `min(weight · b, cap)` for b = 0..128; BT values are clamped to 127, where the term is
-    // already at the cap (or 0 for weight 0) because the cap is at most 127.
-    let (term_lo, term_hi) = match &ad {
-        Some(ad) => {
-            let table: [u8; 128] =
-                std::array::from_fn(|b| (u32::from(ad.weight) * b as u32).min(u32::from(ad.cap)) as u8);
-            (_mm512_loadu_si512(table.as_ptr().cast()), _mm512_loadu_si512(table[64..].as_ptr().cast()))
-        }
-        None => (_mm512_setzero_si512(), _mm512_setzero_si512()),
-    };
-    let top = _mm512_set1_epi8(127);
+    let consts = U8Consts::new(worst, &ad);
+    let U8Consts { pad, worst, unpack, .. } = consts;
     let bt_len = (width + 2 * BT_PAD) as i64;
-    for (x, &census) in left.iter().enumerate() {
+    // The columns whose census and AD loads all lie inside the row take the lean loop.
+    let lean = if lanes <= 256 { lean_columns(width, min_disparity, lanes) } else { 0..0 };
+    for x in (0..lean.start).chain(lean.end..width) {
+        let census = left[x];
         let l = _mm512_set1_epi64(census as i64);
         // Disparity index k has its right pixel at first - k: inside the row for k in lo..hi.
         let (lo, hi, first) = feasible(x, width, min_disparity, nd);
@@ -462,21 +447,12 @@ pub(super) unsafe fn cost_row_u8_avx512(
                     _mm512_maskz_loadu_epi64(inside, right.as_ptr().wrapping_offset(lowest as isize).cast());
                 _mm512_popcnt_epi64(_mm512_xor_si512(l, r))
             };
-            // Loads 2a and 2a + 1 give disparities k + 16a.. (bytes 16a..16a + 16 of `pair`);
-            // the four pairs' ranges are then put together by byte blends.
-            let pair = |a: usize| _mm512_permutex2var_epi8(count(2 * a), unpack, count(2 * a + 1));
-            let low_half = _mm512_mask_blend_epi8(0xffff_0000_ffff_0000, pair(0), pair(1));
-            let mut cost = if half {
-                low_half
-            } else {
-                let high_half = _mm512_mask_blend_epi8(0xffff_0000_ffff_0000, pair(2), pair(3));
-                _mm512_mask_blend_epi8(0xffff_ffff_0000_0000, low_half, high_half)
-            };
-            let block: u64 = if half { u64::from(u32::MAX) } else { u64::MAX };
+            let mut cost = hamming_block(count, unpack, half);
             if let (Some(ad), Some((lv, llo, lhi))) = (&ad, bt_left) {
                 // Disparity k reads the reversed right BT rows at `i + k`; the pads of
                 // `BT_PAD` entries cover the lanes of interior pixels past `nd` (at most 31
                 // past it: `block` leaves out the upper half of a half block), masks the rest.
+                let block: u64 = if half { u64::from(u32::MAX) } else { u64::MAX };
                 let i = BT_PAD as i64 + width as i64 - 1 - first + k as i64;
                 let inside = if interior { block } else { lanes_between(-i, bt_len - i, 64) & block };
                 let load = |row: &[u8]| {
@@ -485,11 +461,8 @@ pub(super) unsafe fn cost_row_u8_avx512(
                     // inside the padded row.
                     _mm512_maskz_loadu_epi8(inside, row.as_ptr().wrapping_offset(i as isize).cast())
                 };
-                let (rv, rlo, rhi) = (load(&ad.right.value), load(&ad.right.lo), load(&ad.right.hi));
-                let d_lr = _mm512_max_epu8(_mm512_subs_epu8(lv, rhi), _mm512_subs_epu8(rlo, lv));
-                let d_rl = _mm512_max_epu8(_mm512_subs_epu8(rv, lhi), _mm512_subs_epu8(llo, rv));
-                let bt = _mm512_min_epu8(_mm512_min_epu8(d_lr, d_rl), top);
-                cost = _mm512_add_epi8(cost, _mm512_permutex2var_epi8(term_lo, bt, term_hi));
+                let right_bt = (load(&ad.right.value), load(&ad.right.lo), load(&ad.right.hi));
+                cost = add_ad_term(cost, (lv, llo, lhi), right_bt, &consts);
             }
             let cost = if interior && k + 64 <= nd {
                 cost
@@ -502,19 +475,236 @@ pub(super) unsafe fn cost_row_u8_avx512(
             };
             // SAFETY: `k + 32 <= lanes` (and `k + 64 <= lanes` unless `half`), inside this
             // pixel's entries.
-            let at = dst.add(k);
-            if half {
-                _mm256_storeu_si256(at.cast(), _mm512_castsi512_si256(cost));
-            } else if (at as usize).is_multiple_of(64) {
-                _mm512_storeu_si512(at.cast(), cost);
-            } else {
-                // Two 256-bit stores, at multiples of 32 bytes in an aligned row: one 512-bit
-                // store there would split a cache line.
-                _mm256_storeu_si256(at.cast(), _mm512_castsi512_si256(cost));
-                _mm256_storeu_si256(at.add(32).cast(), _mm512_extracti64x4_epi64::<1>(cost));
-            }
+            store_block(dst.add(k), cost, half);
             k += 64;
         }
+    }
+    macro_rules! lean {
+        ($nb:literal, $half:literal) => {
+            cost_columns_u8_lean::<$nb, $half>(left, right, min_disparity, nd, &consts, &ad, lean, out)
+        };
+    }
+    match (lanes.div_ceil(64), !lanes.is_multiple_of(64)) {
+        _ if lean.is_empty() => {}
+        (1, true) => lean!(1, true),
+        (1, false) => lean!(1, false),
+        (2, true) => lean!(2, true),
+        (2, false) => lean!(2, false),
+        (3, true) => lean!(3, true),
+        (3, false) => lean!(3, false),
+        (4, true) => lean!(4, true),
+        _ => lean!(4, false),
+    }
+}
+
+/// The constant registers of [`cost_row_u8_avx512`].
+#[derive(Clone, Copy)]
+struct U8Consts {
+    pad: __m512i,
+    worst: __m512i,
+    /// Load j's lane i (byte 8i of its popcounts) is disparity k + 8j + 7 - i; byte m of a pair
+    /// of loads (2a, 2a + 1) is disparity k + 16a + m % 16 for the m whose `m / 16 == a`, from
+    /// the first (index bit 6 clear) or second load of the pair by bit 3 of m.
+    unpack: __m512i,
+    /// `min(weight · b, cap)` for b = 0..128 (two registers); BT values are clamped to 127,
+    /// where the term is already at the cap (or 0 for weight 0) because the cap is at most 127.
+    term_lo: __m512i,
+    term_hi: __m512i,
+    top: __m512i,
+}
+
+impl U8Consts {
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
+    fn new(worst: u16, ad: &Option<AdRows<'_>>) -> Self {
+        let idx: [u8; 64] = std::array::from_fn(|m| (8 * (7 - m % 8) + 64 * ((m / 8) % 2)) as u8);
+        // SAFETY: 64 bytes read from a 64-byte array.
+        let unpack = unsafe { _mm512_loadu_si512(idx.as_ptr().cast()) };
+        let (term_lo, term_hi) = match ad {
+            Some(ad) => {
+                let table: [u8; 128] =
+                    std::array::from_fn(|b| (u32::from(ad.weight) * b as u32).min(u32::from(ad.cap)) as u8);
+                // SAFETY: two 64-byte reads inside the 128-byte table.
+                unsafe {
+                    (
+                        _mm512_loadu_si512(table.as_ptr().cast()),
+                        _mm512_loadu_si512(table[64..].as_ptr().cast()),
+                    )
+                }
+            }
+            None => (_mm512_setzero_si512(), _mm512_setzero_si512()),
+        };
+        U8Consts {
+            pad: _mm512_set1_epi8(PAD_U8 as i8),
+            worst: _mm512_set1_epi8(worst as i8),
+            unpack,
+            term_lo,
+            term_hi,
+            top: _mm512_set1_epi8(127),
+        }
+    }
+}
+
+/// The columns `x` of a row of `width` pixels whose every census load (`lanes` of them, padding
+/// included, at `x - min_disparity - lanes + 1 ..= x - min_disparity`) lies inside the row: there
+/// every disparity is feasible and no load needs a mask.
+fn lean_columns(width: usize, min_disparity: i32, lanes: usize) -> std::ops::Range<usize> {
+    let w = width as i64;
+    let start = (i64::from(min_disparity) + lanes as i64 - 1).clamp(0, w);
+    let end = (i64::from(min_disparity) + w).clamp(start, w);
+    start as usize..end as usize
+}
+
+/// [`cost_row_u8_avx512`] on its [`lean_columns`]: the same instructions on the same values, without
+/// the per-pixel bounds (feasible disparities, load masks), for `NB` blocks of 64 lanes, the
+/// last one half (32 lanes) when `HALF`.
+///
+/// # Safety
+/// As [`cost_row_u8_avx512`]; `columns` within [`lean_columns`] and `lanes` =
+/// `64 * NB - 32 * HALF`.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vpopcntdq,avx512vbmi")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn cost_columns_u8_lean<const NB: usize, const HALF: bool>(
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    consts: &U8Consts,
+    ad: &Option<AdRows<'_>>,
+    columns: std::ops::Range<usize>,
+    out: &mut [u8],
+) {
+    match ad {
+        Some(ad) => {
+            let (l, r) = (ad.left, ad.right);
+            let rows = [&l.value, &l.lo, &l.hi, &r.value, &r.lo, &r.hi].map(|row| row.as_ptr());
+            lean_body::<NB, HALF, true>(left, right, min_disparity, nd, consts, rows, columns, out)
+        }
+        None => lean_body::<NB, HALF, false>(
+            left,
+            right,
+            min_disparity,
+            nd,
+            consts,
+            [std::ptr::null(); 6],
+            columns,
+            out,
+        ),
+    }
+}
+
+/// The loop of [`cost_columns_u8_lean`], with the AD term when `AD` (its BT rows' pointers in
+/// `bt`: left value, lo, hi, then the reversed right rows), so that neither the term's presence
+/// nor its rows are looked up per pixel.
+///
+/// # Safety
+/// As [`cost_columns_u8_lean`]; with `AD`, `bt` points at the `width + 2 * BT_PAD` entries of
+/// each row.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+unsafe fn lean_body<const NB: usize, const HALF: bool, const AD: bool>(
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    consts: &U8Consts,
+    bt: [*const u8; 6],
+    columns: std::ops::Range<usize>,
+    out: &mut [u8],
+) {
+    let width = left.len();
+    let lanes = 64 * NB - if HALF { 32 } else { 0 };
+    let U8Consts { pad, unpack, .. } = *consts;
+    // The lanes of each block that hold a disparity; the rest are the pad.
+    let real: [u64; NB] = std::array::from_fn(|b| lanes_between(0, nd as i64 - 64 * b as i64, 64));
+    let [bt_lv, bt_llo, bt_lhi, bt_rv, bt_rlo, bt_rhi] = bt;
+    let out = out.as_mut_ptr();
+    for x in columns {
+        let l = _mm512_set1_epi64(left[x] as i64);
+        let first = x as i64 - i64::from(min_disparity);
+        let dst = out.add(x * lanes);
+        let il = BT_PAD + x;
+        let (lv, llo, lhi) = if AD {
+            (
+                _mm512_set1_epi8(*bt_lv.add(il) as i8),
+                _mm512_set1_epi8(*bt_llo.add(il) as i8),
+                _mm512_set1_epi8(*bt_lhi.add(il) as i8),
+            )
+        } else {
+            (pad, pad, pad)
+        };
+        for (b, &real) in real.iter().enumerate() {
+            let k = 64 * b;
+            let half = HALF && b + 1 == NB;
+            let low = first - k as i64 - 63;
+            let count = |j: usize| {
+                // SAFETY: `first - lanes + 1 >= 0` and `first < width` on the lean columns, so
+                // the 8 strings at `low + 8 (7 - j)` lie inside `right` (for a half block only
+                // `j < 4` is read, from `low + 32`).
+                let r = _mm512_loadu_si512(right.as_ptr().offset((low + 8 * (7 - j as i64)) as isize).cast());
+                _mm512_popcnt_epi64(_mm512_xor_si512(l, r))
+            };
+            let mut cost = hamming_block(count, unpack, half);
+            if AD {
+                let block: u64 = if half { u64::from(u32::MAX) } else { u64::MAX };
+                let i = BT_PAD as i64 + width as i64 - 1 - first + k as i64;
+                // SAFETY: as in [`cost_row_u8_avx512`] for interior pixels: the lanes read end at
+                // `i + lanes - k <= BT_PAD + width + 31`, inside the padded row.
+                let load = |row: *const u8| _mm512_maskz_loadu_epi8(block, row.offset(i as isize).cast());
+                cost = add_ad_term(cost, (lv, llo, lhi), (load(bt_rv), load(bt_rlo), load(bt_rhi)), consts);
+            }
+            // SAFETY: inside this pixel's `lanes` entries, as in [`cost_row_u8_avx512`].
+            store_block(dst.add(k), _mm512_mask_mov_epi8(pad, real, cost), half);
+        }
+    }
+}
+
+/// The census costs of one block of 64 disparities (32 when `half`) of the 8-bit cost row from
+/// `count(j)`, the popcounts of load `j` (8 right census strings, descending disparities):
+/// loads 2a and 2a + 1 give disparities 16a.. (bytes 16a..16a + 16 of `pair(a)`), the pairs'
+/// ranges then put together by byte blends.
+#[inline(always)]
+unsafe fn hamming_block(count: impl Fn(usize) -> __m512i, unpack: __m512i, half: bool) -> __m512i {
+    let pair = |a: usize| _mm512_permutex2var_epi8(count(2 * a), unpack, count(2 * a + 1));
+    let low_half = _mm512_mask_blend_epi8(0xffff_0000_ffff_0000, pair(0), pair(1));
+    if half {
+        low_half
+    } else {
+        let high_half = _mm512_mask_blend_epi8(0xffff_0000_ffff_0000, pair(2), pair(3));
+        _mm512_mask_blend_epi8(0xffff_ffff_0000_0000, low_half, high_half)
+    }
+}
+
+/// `cost + min(weight · BT, cap)` in bytes, from the left pixel's BT value, lo and hi (`left`,
+/// broadcast) and the right pixels' (`right`, one per disparity).
+#[inline(always)]
+unsafe fn add_ad_term(
+    cost: __m512i,
+    left: (__m512i, __m512i, __m512i),
+    right: (__m512i, __m512i, __m512i),
+    consts: &U8Consts,
+) -> __m512i {
+    let ((lv, llo, lhi), (rv, rlo, rhi)) = (left, right);
+    let d_lr = _mm512_max_epu8(_mm512_subs_epu8(lv, rhi), _mm512_subs_epu8(rlo, lv));
+    let d_rl = _mm512_max_epu8(_mm512_subs_epu8(rv, lhi), _mm512_subs_epu8(llo, rv));
+    let bt = _mm512_min_epu8(_mm512_min_epu8(d_lr, d_rl), consts.top);
+    _mm512_add_epi8(cost, _mm512_permutex2var_epi8(consts.term_lo, bt, consts.term_hi))
+}
+
+/// Stores a block's costs at `at` (32 of them when `half`): two 256-bit stores where one 512-bit
+/// store would split a cache line (rows are 64-byte aligned, pixels a multiple of 32 lanes).
+///
+/// # Safety
+/// `at` has 64 (32 when `half`) writable bytes.
+#[inline(always)]
+unsafe fn store_block(at: *mut u8, cost: __m512i, half: bool) {
+    if half {
+        _mm256_storeu_si256(at.cast(), _mm512_castsi512_si256(cost));
+    } else if (at as usize).is_multiple_of(64) {
+        _mm512_storeu_si512(at.cast(), cost);
+    } else {
+        _mm256_storeu_si256(at.cast(), _mm512_castsi512_si256(cost));
+        _mm256_storeu_si256(at.add(32).cast(), _mm512_extracti64x4_epi64::<1>(cost));
     }
 }
 
