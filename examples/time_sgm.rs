@@ -3,6 +3,8 @@
 //! runs while tuning kernels; the published comparison uses the CLI's `timings_ms.match`.
 //!
 //! `cargo run --release --example time_sgm -- DATA_DIR [RUNS] [fast|balanced|accurate] [fill]`
+//! (`TIME_COST_ROWS=1` times the cost rows alone, `TIME_AGGREGATION=1` the aggregation and
+//! selection alone)
 
 use std::path::Path;
 use std::time::Instant;
@@ -54,6 +56,28 @@ fn main() {
                 .collect();
             ms.sort_by(f64::total_cmp);
             println!("{:<9} cost rows {:8.3} ms (min {:.3})", f[0], ms[ms.len() / 2], ms[0]);
+            continue;
+        }
+        if std::env::var_os("TIME_AGGREGATION").is_some() {
+            // The path aggregation and selection alone (census cost, costs computed on the fly),
+            // for tuning the row kernels.
+            let census_left = stereo_disparity::stages::census(&left, &params);
+            let census_right = stereo_disparity::stages::census(&right, &params);
+            let mut ms: Vec<f64> = (0..runs)
+                .map(|_| {
+                    let t = Instant::now();
+                    let d = stereo_disparity::stages::aggregate_and_select_disparities(
+                        &left,
+                        &census_left,
+                        &census_right,
+                        &params,
+                    );
+                    std::hint::black_box(d);
+                    t.elapsed().as_secs_f64() * 1e3
+                })
+                .collect();
+            ms.sort_by(f64::total_cmp);
+            println!("{:<9} aggregation {:8.3} ms (min {:.3})", f[0], ms[ms.len() / 2], ms[0]);
             continue;
         }
         let mut ms: Vec<f64> = (0..runs)
