@@ -40,6 +40,8 @@ use crate::{DisparityRange, GrayImage, Image, PathCount};
 /// `P2(ΔI) = max(P1 + 1, P2 · s / (s + ΔI))` for edge scale `s`; `s = 0` keeps P2 constant.
 pub(crate) struct P2Table {
     table: [u16; 256],
+    /// The table in 8 bits, where every entry fits (the 8-bit passes).
+    table_u8: Option<[u8; 256]>,
     /// `Some(P2)` when P2 does not depend on the intensity step (edge scale 0).
     constant: Option<u16>,
 }
@@ -53,7 +55,15 @@ impl P2Table {
                 *v = ((u32::from(p2) * s / (s + step as u32)) as u16).max(p1 + 1);
             }
         }
-        P2Table { table: t, constant: (edge_scale == 0).then_some(p2) }
+        let table_u8 = t.iter().all(|&v| v <= 255).then(|| t.map(|v| v as u8));
+        P2Table { table: t, table_u8, constant: (edge_scale == 0).then_some(p2) }
+    }
+
+    /// [`P2Table::p2`] of each pair `a[i]`, `b[i]` into `out[i]`, narrowed to `T`.
+    fn narrowed_row<T: PathCost>(&self, a: &[u16], b: &[u16], out: &mut [T]) {
+        for ((o, &a), &b) in out.iter_mut().zip(a).zip(b) {
+            *o = T::narrow(self.p2(a, b));
+        }
     }
 
     /// The largest P2 of the table.
@@ -107,6 +117,10 @@ trait PathCost: Copy + Default + Send + Sync + 'static {
     ) -> [Self; N];
     /// Whether [`PathCost::row`] has a kernel for this level and lane count.
     fn has_row(level: Level, lanes: usize) -> bool;
+    /// `out[i]` = the P2 of a step between pixels of intensities `a[i]` and `b[i]`.
+    fn p2_row(_level: Level, p2: &P2Table, a: &[u16], b: &[u16], out: &mut [Self]) {
+        p2.narrowed_row(a, b, out);
+    }
     /// [`crate::kernels::row_u8`] in this type: a row of a pass with the horizontal path in
     /// registers; `false` (nothing done) where there is no such kernel.
     #[allow(clippy::too_many_arguments)]
@@ -208,6 +222,13 @@ impl PathCost for u8 {
     }
     fn has_row(level: Level, lanes: usize) -> bool {
         crate::kernels::row_u8_available(level, lanes)
+    }
+    fn p2_row(level: Level, p2: &P2Table, a: &[u16], b: &[u16], out: &mut [u8]) {
+        match (p2.constant, &p2.table_u8) {
+            (Some(c), _) => out.fill(Self::narrow(c)),
+            (None, Some(table)) => kernels::p2_row_u8(level, table, a, b, out),
+            (None, None) => p2.narrowed_row(a, b, out),
+        }
     }
     #[inline(always)]
     fn row<const K: usize>(
@@ -561,11 +582,10 @@ kernels::multiversion! {
 
 /// The ← path's P2 of row `y`: `p2[x]` for stepping into `x` from `x + 1` (the last entry is not
 /// read).
-fn left_path_p2<T: PathCost>(inputs: &Inputs<'_>, y: usize, p2: &mut [T]) {
+fn left_path_p2<T: PathCost>(inputs: &Inputs<'_>, y: usize, level: Level, p2: &mut [T]) {
     let row = inputs.image.row(y);
-    for (x, p) in p2.iter_mut().enumerate().take(row.len().saturating_sub(1)) {
-        *p = T::narrow(inputs.p2.p2(row[x], row[x + 1]));
-    }
+    let n = row.len().saturating_sub(1);
+    T::p2_row(level, inputs.p2, &row[..n], &row[1.min(row.len())..], &mut p2[..n]);
 }
 
 /// The single pass over rows `warm..y1`: warm-up only above `y0`, then per row the forward
@@ -608,7 +628,7 @@ fn stream_rows_generic<T: PathCost>(
             }
             std::mem::swap(&mut state.cost_narrow, &mut held_cost);
             std::mem::swap(&mut sum, &mut held_sum);
-            left_path_p2(inputs, y, &mut p2_row);
+            left_path_p2(inputs, y, level, &mut p2_row);
             held = Some(y);
         }
         if let Some(held_y) = held {
@@ -633,7 +653,7 @@ fn stream_rows_generic<T: PathCost>(
         } else {
             &state.cost_narrow
         };
-        left_path_p2(inputs, y, &mut p2_row);
+        left_path_p2(inputs, y, level, &mut p2_row);
         let start = PathIn { prev: &state.zero[..], prev_min: T::default(), p2: T::default() };
         let mut h_min = T::default();
         for x in (0..width).rev() {
@@ -858,26 +878,25 @@ fn row_kernel<T: PathCost>(
     if width == 0 || !T::has_row(level, lanes) {
         return false;
     }
-    let p2 = |a: u16, b: u16| T::narrow(inputs.p2.p2(a, b));
     let [p2_h, p2_v, p2_a, p2_b] = p2_rows;
-    // Pixel x is entered from x - step along the row and from x + dx of the previous row.
+    let p2_of = |a: &[u16], b: &[u16], out: &mut [T]| T::p2_row(level, inputs.p2, a, b, out);
+    // Pixel x is entered from x - step along the row and from x + dx of the previous row:
+    // pixels 1.. from their left neighbours, pixels ..width - 1 from their right ones (entries
+    // without a source are not read).
     let step: isize = if forward { 1 } else { -1 };
-    let source = |x: usize, dx: isize| x.checked_add_signed(dx).filter(|&f| f < width);
+    let (from_left, from_right) = (1..width, 0..width - 1);
     let diagonals = inputs.paths == PathCount::Eight;
-    for x in 0..width {
-        if let Some(f) = source(x, -step) {
-            p2_h[x] = p2(row[x], row[f]);
-        }
-        p2_v[x] = p2(row[x], prev_row[x]);
-        if !diagonals {
-            continue;
-        }
-        if let Some(f) = source(x, -step) {
-            p2_a[x] = p2(row[x], prev_row[f]);
-        }
-        if let Some(f) = source(x, step) {
-            p2_b[x] = p2(row[x], prev_row[f]);
-        }
+    if forward {
+        p2_of(&row[from_left.clone()], &row[from_right.clone()], &mut p2_h[from_left.clone()]);
+    } else {
+        p2_of(&row[from_right.clone()], &row[from_left.clone()], &mut p2_h[from_right.clone()]);
+    }
+    p2_of(row, prev_row, p2_v);
+    if diagonals {
+        // The diagonal "a" comes from x - step in the previous row, "b" from x + step.
+        let (left, right) = if forward { (&mut *p2_a, &mut *p2_b) } else { (&mut *p2_b, &mut *p2_a) };
+        p2_of(&row[from_left.clone()], &prev_row[from_right.clone()], &mut left[from_left]);
+        p2_of(&row[from_right.clone()], &prev_row[1..], &mut right[from_right]);
     }
     fn from<'a, T>(
         paths: &'a mut [RowPaths<T>; 2],

@@ -525,6 +525,23 @@ pub(crate) fn bt_fill(level: Level, row: &[u16], value: &mut [u8], lo: &mut [u8]
     }
 }
 
+/// The 8-bit P2 of each step between pixels of 16-bit intensities `a[i]` and `b[i]`:
+/// `out[i] = table[|a[i] - b[i]| / 257]` (the step in 8-bit grey levels). 32 pixels per
+/// instruction with AVX-512 VBMI (the table in four registers), else [`scalar::p2_row_u8_scalar`].
+// Elsewhere there is only the scalar loop.
+#[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
+pub(crate) fn p2_row_u8(level: Level, table: &[u8; 256], a: &[u16], b: &[u16], out: &mut [u8]) {
+    assert!(a.len() == out.len() && b.len() == out.len());
+    #[cfg(target_arch = "x86_64")]
+    if level.avx512() && Features::capped(level).vbmi {
+        // SAFETY: AVX-512F/BW/VL (the level is only chosen when present) and VBMI (detected);
+        // the lengths were checked above.
+        unsafe { avx512::p2_row_u8_avx512(table, a, b, out) };
+        return;
+    }
+    scalar::p2_row_u8_scalar(table, a, b, out)
+}
+
 /// The most lanes the register kernel keeps (four 64-lane registers); longer vectors take the
 /// per-pixel kernel.
 const MAX_REGISTER_LANES: usize = 256;

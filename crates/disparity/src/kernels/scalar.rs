@@ -164,6 +164,13 @@ pub(crate) fn cost_row_u8_scalar(
     }
 }
 
+/// The readable reference of [`super::p2_row_u8`].
+pub(crate) fn p2_row_u8_scalar(table: &[u8; 256], a: &[u16], b: &[u16], out: &mut [u8]) {
+    for ((o, &a), &b) in out.iter_mut().zip(a).zip(b) {
+        *o = table[usize::from(a.abs_diff(b) / 257)];
+    }
+}
+
 /// The readable reference of [`super::argmin`].
 pub(crate) fn argmin_scalar<T: Copy + Ord>(values: &[T]) -> (T, usize) {
     let mut best = 0;

@@ -226,6 +226,27 @@ proptest! {
 }
 
 proptest! {
+    /// The P2 row equals its scalar reference on every level, for any 16-bit intensities (steps
+    /// of every size, so every table entry and both table halves are read) and lengths that
+    /// leave a partial last block.
+    #[test]
+    fn p2_row_kernels_match_the_scalar_reference(
+        pairs in prop::collection::vec((any::<u16>(), any::<u16>()), 0..150), seed in any::<u64>(),
+    ) {
+        let mut s = seed | 1;
+        let table: [u8; 256] = std::array::from_fn(|_| { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s as u8 });
+        let (a, b): (Vec<u16>, Vec<u16>) = pairs.into_iter().unzip();
+        let mut reference = vec![0u8; a.len()];
+        p2_row_u8_scalar(&table, &a, &b, &mut reference);
+        for level in supported_levels() {
+            let mut out = vec![1u8; a.len()];
+            p2_row_u8(level, &table, &a, &b, &mut out);
+            prop_assert_eq!(&out, &reference, "{:?}", level);
+        }
+    }
+}
+
+proptest! {
     #[test]
     fn argmin_kernels_match_the_scalar_reference(values in prop::collection::vec(0u16..40, 1..150),
                                                  big in any::<bool>()) {

@@ -708,6 +708,37 @@ unsafe fn store_block(at: *mut u8, cost: __m512i, half: bool) {
     }
 }
 
+/// AVX-512 VBMI [`super::p2_row_u8`], 32 pixels per step: the absolute difference in 16 bits,
+/// divided by 257 exactly as `mulhi(d, 0xff01) >> 8` (checked for every `d`), narrowed to bytes,
+/// then looked up in the 256-entry table by two two-register byte permutations (index bits 0–6)
+/// and a blend on bit 7.
+///
+/// # Safety
+/// The CPU must have AVX-512F/BW/VL and VBMI; `a`, `b` and `out` of equal length.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+pub(super) unsafe fn p2_row_u8_avx512(table: &[u8; 256], a: &[u16], b: &[u16], out: &mut [u8]) {
+    let t: [__m512i; 4] = std::array::from_fn(|i| _mm512_loadu_si512(table.as_ptr().add(64 * i).cast()));
+    let by_257 = _mm512_set1_epi16(0xff01u16 as i16);
+    let n = out.len();
+    let mut i = 0;
+    while i < n {
+        let m = (n - i).min(32);
+        let mask: __mmask32 = if m == 32 { !0 } else { (1u32 << m) - 1 };
+        // SAFETY: masked to the `m` entries from `i` of the three slices.
+        let va = _mm512_maskz_loadu_epi16(mask, a.as_ptr().add(i).cast());
+        let vb = _mm512_maskz_loadu_epi16(mask, b.as_ptr().add(i).cast());
+        let step = _mm512_sub_epi16(_mm512_max_epu16(va, vb), _mm512_min_epu16(va, vb));
+        let index = _mm512_castsi256_si512(_mm512_cvtepi16_epi8(_mm512_srli_epi16::<8>(_mm512_mulhi_epu16(
+            step, by_257,
+        ))));
+        let low = _mm512_permutex2var_epi8(t[0], index, t[1]);
+        let high = _mm512_permutex2var_epi8(t[2], index, t[3]);
+        let p2 = _mm512_mask_blend_epi8(_mm512_movepi8_mask(index), low, high);
+        _mm256_mask_storeu_epi8(out.as_mut_ptr().add(i).cast(), mask, _mm512_castsi512_si256(p2));
+        i += 32;
+    }
+}
+
 /// Minimum of the 32 unsigned 8-bit lanes.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vl")]
