@@ -33,16 +33,24 @@ fn main() {
             params = params.with_fill();
         }
         params.range = DisparityRange::new(0, nd).expect("range");
-        if let Ok(what) = std::env::var("TIME_COST_ROWS") {
-            if what == "census" {
-                params.matching_cost = stereo_disparity::MatchingCost::Census;
-            }
-            // The cost rows alone (census + AD term), for tuning that kernel.
+        let cost_rows = std::env::var("TIME_COST_ROWS").ok();
+        if cost_rows.as_deref() == Some("census") {
+            params.matching_cost = stereo_disparity::MatchingCost::Census;
+        }
+        let stage = if cost_rows.is_some() {
+            "cost rows"
+        } else if std::env::var_os("TIME_AGGREGATION").is_some() {
+            "aggregation"
+        } else {
+            ""
+        };
+        if !stage.is_empty() {
+            // One stage alone, for tuning its kernel: the cost rows (census + AD term), or the path
+            // aggregation and selection (census cost, costs computed on the fly).
             let census_left = stereo_disparity::stages::census(&left, &params);
             let census_right = stereo_disparity::stages::census(&right, &params);
-            let mut ms: Vec<f64> = (0..runs)
-                .map(|_| {
-                    let t = Instant::now();
+            let (med, min) = median_and_min_ms(runs, || {
+                if cost_rows.is_some() {
                     let c = stereo_disparity::stages::matching_costs(
                         &left,
                         &right,
@@ -51,21 +59,7 @@ fn main() {
                         &params,
                     );
                     std::hint::black_box(c);
-                    t.elapsed().as_secs_f64() * 1e3
-                })
-                .collect();
-            ms.sort_by(f64::total_cmp);
-            println!("{:<9} cost rows {:8.3} ms (min {:.3})", f[0], ms[ms.len() / 2], ms[0]);
-            continue;
-        }
-        if std::env::var_os("TIME_AGGREGATION").is_some() {
-            // The path aggregation and selection alone (census cost, costs computed on the fly),
-            // for tuning the row kernels.
-            let census_left = stereo_disparity::stages::census(&left, &params);
-            let census_right = stereo_disparity::stages::census(&right, &params);
-            let mut ms: Vec<f64> = (0..runs)
-                .map(|_| {
-                    let t = Instant::now();
+                } else {
                     let d = stereo_disparity::stages::aggregate_and_select_disparities(
                         &left,
                         &census_left,
@@ -73,23 +67,14 @@ fn main() {
                         &params,
                     );
                     std::hint::black_box(d);
-                    t.elapsed().as_secs_f64() * 1e3
-                })
-                .collect();
-            ms.sort_by(f64::total_cmp);
-            println!("{:<9} aggregation {:8.3} ms (min {:.3})", f[0], ms[ms.len() / 2], ms[0]);
+                }
+            });
+            println!("{:<9} {stage} {med:8.3} ms (min {min:.3})", f[0]);
             continue;
         }
-        let mut ms: Vec<f64> = (0..runs)
-            .map(|_| {
-                let t = Instant::now();
-                let d = sgm(&left, &right, &params).expect("sgm");
-                std::hint::black_box(d);
-                t.elapsed().as_secs_f64() * 1e3
-            })
-            .collect();
-        ms.sort_by(f64::total_cmp);
-        let med = ms[ms.len() / 2];
+        let (med, min) = median_and_min_ms(runs, || {
+            std::hint::black_box(sgm(&left, &right, &params).expect("sgm"));
+        });
         let (w, h) = left.size();
         let mde = |ms: f64| (w * h) as f64 * f64::from(nd) / (ms * 1e3);
         println!(
@@ -97,8 +82,21 @@ fn main() {
             f[0],
             med,
             mde(med),
-            ms[0],
-            mde(ms[0])
+            min,
+            mde(min)
         );
     }
+}
+
+/// The median and the minimum wall time (ms) of `runs` calls of `f`.
+fn median_and_min_ms(runs: usize, mut f: impl FnMut()) -> (f64, f64) {
+    let mut ms: Vec<f64> = (0..runs.max(1))
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    ms.sort_by(f64::total_cmp);
+    (ms[ms.len() / 2], ms[0])
 }
