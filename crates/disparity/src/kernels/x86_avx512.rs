@@ -409,8 +409,9 @@ pub(super) unsafe fn cost_row_u8_avx512(
     let consts = U8Consts::new(worst, &ad);
     let U8Consts { pad, worst, unpack, .. } = consts;
     let bt_len = (width + 2 * BT_PAD) as i64;
-    // The columns whose census and AD loads all lie inside the row take the lean loop.
-    let lean = if lanes <= 256 { lean_columns(width, min_disparity, lanes) } else { 0..0 };
+    // The columns whose census and AD loads all lie inside the row take the lean loop (compiled
+    // for up to `LEAN_BLOCKS` blocks of 64 lanes).
+    let lean = if lanes <= 64 * LEAN_BLOCKS { lean_columns(width, min_disparity, lanes) } else { 0..0 };
     for x in (0..lean.start).chain(lean.end..width) {
         let census = left[x];
         let l = _mm512_set1_epi64(census as i64);
@@ -493,9 +494,14 @@ pub(super) unsafe fn cost_row_u8_avx512(
         (3, true) => lean!(3, true),
         (3, false) => lean!(3, false),
         (4, true) => lean!(4, true),
-        _ => lean!(4, false),
+        (4, false) => lean!(4, false),
+        _ => unreachable!("lean columns of more than {LEAN_BLOCKS} blocks"),
     }
 }
+
+/// The most 64-lane blocks [`cost_columns_u8_lean`] is compiled for (256 disparities); wider
+/// rows take the general loop throughout.
+const LEAN_BLOCKS: usize = 4;
 
 /// The constant registers of [`cost_row_u8_avx512`].
 #[derive(Clone, Copy)]
