@@ -7,144 +7,31 @@ use crate::DisparityMap;
 /// 3×3 median over the valid (non-NaN) disparities around each valid pixel; invalid pixels stay
 /// invalid. Removes isolated wrong matches and smooths subpixel noise without blurring edges.
 /// Equal to [`median_3x3_reference`]: the values are ordered by `f32::total_cmp` through their
-/// integer keys, and full 3×3 windows take a 19-exchange median network instead of a sort.
+/// integer keys, and every window, holes and the map's border included, goes through a
+/// 19-exchange median network instead of a sort ([`crate::kernels::median3x3_row`]).
 pub(crate) fn median_3x3(disparity: &DisparityMap) -> DisparityMap {
     let (width, height) = disparity.size();
     let mut out = disparity.clone();
+    let level = crate::kernels::features().level;
     let rows_per_task = height.div_ceil(16).max(1);
     out.as_mut_slice().par_chunks_mut(width.max(1) * rows_per_task).enumerate().for_each(|(task, rows)| {
-        let mut scratch = MedianScratch::new(width);
+        // The rows above, at and below each row, framed by holes (the windows of border pixels
+        // reach beyond the map).
+        let mut framed: [Vec<f32>; 3] = std::array::from_fn(|_| vec![f32::NAN; width + 2]);
         for (i, row) in rows.chunks_mut(width.max(1)).enumerate() {
-            median_row(disparity, task * rows_per_task + i, row, &mut scratch);
+            let y = task * rows_per_task + i;
+            for (line, r) in framed.iter_mut().zip([y.wrapping_sub(1), y, y + 1]) {
+                if r < height {
+                    line[1..=width].copy_from_slice(&disparity.as_slice()[r * width..(r + 1) * width]);
+                } else {
+                    line.fill(f32::NAN);
+                }
+            }
+            let [above, at, below] = &framed;
+            crate::kernels::median3x3_row(level, [above, at, below], row);
         }
     });
     out
-}
-
-/// Per-task buffers: the median of each interior pixel's window of a row (as an order key) and
-/// how many NaNs each window holds.
-struct MedianScratch {
-    medians: Vec<i32>,
-    nans: Vec<u8>,
-}
-
-impl MedianScratch {
-    fn new(width: usize) -> Self {
-        MedianScratch { medians: vec![0; width], nans: vec![0; width] }
-    }
-
-    /// The median of interior pixel `x` (valid after [`full_window_medians`]).
-    fn median(&self, x: usize) -> i32 {
-        self.medians[x]
-    }
-}
-
-/// Runs the exchanges of Paeth's median-of-nine network (as in Devillard's `opt_med9`) on the
-/// window entries `$w` (each `B` lanes): afterwards entry 4 holds the median. In every pair the
-/// first entry receives the smaller key. Written out (not a loop over a table) so that the
-/// entries stay in registers.
-macro_rules! median9_network {
-    ($w:ident, $lanes:expr) => {
-        median9_network!(@ $w, $lanes; (1, 2) (4, 5) (7, 8) (0, 1) (3, 4) (6, 7) (1, 2) (4, 5) (7, 8)
-            (0, 3) (5, 8) (4, 7) (3, 6) (1, 4) (2, 5) (4, 7) (2, 4) (4, 6) (2, 4))
-    };
-    (@ $w:ident, $lanes:expr; $(($a:literal, $b:literal))*) => {
-        $(
-            for l in 0..$lanes {
-                let (p, q) = ($w[$a][l], $w[$b][l]);
-                $w[$a][l] = p.min(q);
-                $w[$b][l] = p.max(q);
-            }
-        )*
-    };
-}
-
-/// The medians (order keys) and NaN counts of the 3×3 windows of the `B` interior pixels
-/// `x + 1 .. x + 1 + B` of the middle row of `rows`: the network runs on `B` pixels at once, its
-/// nine window entries held in registers.
-#[inline(always)]
-fn window_medians<const B: usize>(rows: [&[f32]; 3], x: usize) -> ([i32; B], [u8; B]) {
-    let mut w = [[0i32; B]; 9];
-    let mut nans = [0u8; B];
-    for (i, entry) in w.iter_mut().enumerate() {
-        let row = &rows[i / 3][x + i % 3..x + i % 3 + B];
-        for ((k, nan), &v) in entry.iter_mut().zip(&mut nans).zip(row) {
-            *k = key(v.to_bits());
-            *nan += u8::from(v.is_nan());
-        }
-    }
-    median9_network!(w, B);
-    (w[4], nans)
-}
-
-/// Medians of all interior 3×3 windows of row `y` (`1 <= y < height - 1`), 8 pixels at a time
-/// (one 256-bit register per window entry).
-#[inline(always)]
-fn full_window_medians_generic(
-    src: &[f32],
-    width: usize,
-    y: usize,
-    scratch: &mut MedianScratch,
-    _level: crate::kernels::Level,
-) {
-    const B: usize = 8;
-    let n = width - 2;
-    let rows = [y - 1, y, y + 1].map(|r| &src[r * width..(r + 1) * width]);
-    let mut x = 0;
-    while x + B <= n {
-        let (medians, nans) = window_medians::<B>(rows, x);
-        scratch.medians[x + 1..x + 1 + B].copy_from_slice(&medians);
-        scratch.nans[x + 1..x + 1 + B].copy_from_slice(&nans);
-        x += B;
-    }
-    for x in x..n {
-        let ([median], [nans]) = window_medians::<1>(rows, x);
-        scratch.medians[x + 1] = median;
-        scratch.nans[x + 1] = nans;
-    }
-}
-
-crate::kernels::multiversion! {
-    /// [`full_window_medians_generic`] compiled for the detected level.
-    fn full_window_medians(src: &[f32], width: usize, y: usize, scratch: &mut MedianScratch) => full_window_medians_generic;
-}
-
-/// `f32::total_cmp` order as a plain `i32` order (an involution on the bits).
-#[inline(always)]
-fn key(bits: u32) -> i32 {
-    (bits ^ (((bits as i32) >> 31) as u32 >> 1)) as i32
-}
-
-fn median_row(disparity: &DisparityMap, y: usize, row: &mut [f32], scratch: &mut MedianScratch) {
-    let (width, height) = disparity.size();
-    let src = disparity.as_slice();
-    let interior = y >= 1 && y + 1 < height && width >= 3;
-    if interior {
-        full_window_medians(src, width, y, scratch);
-    }
-    let ys = y.saturating_sub(1)..(y + 2).min(height);
-    for (x, o) in row.iter_mut().enumerate() {
-        if o.is_nan() {
-            continue;
-        }
-        if interior && x >= 1 && x + 1 < width && scratch.nans[x] == 0 {
-            *o = f32::from_bits(key(scratch.median(x) as u32) as u32);
-            continue;
-        }
-        let xs = x.saturating_sub(1)..(x + 2).min(width);
-        let mut window = [0i32; 9];
-        let mut n = 0;
-        for yy in ys.clone() {
-            for &v in &src[yy * width + xs.start..yy * width + xs.end] {
-                window[n] = key(v.to_bits());
-                n += usize::from(!v.is_nan());
-            }
-        }
-        let w = &mut window[..n];
-        w.sort_unstable();
-        let at = |i: usize| f32::from_bits(key(w[i] as u32) as u32);
-        *o = if n % 2 == 1 { at(n / 2) } else { 0.5 * (at(n / 2 - 1) + at(n / 2)) };
-    }
 }
 
 /// The original median, the readable reference of [`median_3x3`].

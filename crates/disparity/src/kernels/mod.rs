@@ -542,6 +542,40 @@ pub(crate) fn p2_row_u8(level: Level, table: &[u8; 256], a: &[u16], b: &[u16], o
     scalar::p2_row_u8_scalar(table, a, b, out)
 }
 
+/// The 3 × 3 median of one row of a disparity map over the valid values of each window
+/// ([`scalar::median3x3_row_scalar`]): `rows` are the row above, the row and the row below,
+/// each framed by one value on either side (NaN beyond the map), `out` the row's pixels. With
+/// AVX-512 16 pixels per step (the last ones as on the other levels), elsewhere lanes the
+/// compiler vectorises ([`scalar::median3x3_row_lanes`]).
+pub(crate) fn median3x3_row(level: Level, rows: [&[f32]; 3], out: &mut [f32]) {
+    assert!(rows.iter().all(|r| r.len() == out.len() + 2));
+    // SAFETY: AVX-512F/BW/VL (the level is only chosen when present); lengths checked above.
+    #[cfg(target_arch = "x86_64")]
+    let done = if level.avx512() { unsafe { avx512::median3x3_row_avx512(rows, out) } } else { 0 };
+    #[cfg(not(target_arch = "x86_64"))]
+    let done = 0;
+    let rows = rows.map(|r| &r[done..]);
+    let out = &mut out[done..];
+    #[cfg(target_arch = "x86_64")]
+    match level {
+        // SAFETY: AVX2 is part of both levels, which are only chosen when present.
+        Level::Avx2 | Level::Avx512 => unsafe { median3x3_row_lanes_avx2(rows, out) },
+        Level::Scalar => scalar::median3x3_row_lanes(rows, out, level),
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    scalar::median3x3_row_lanes(rows, out, level);
+}
+
+/// [`scalar::median3x3_row_lanes`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn median3x3_row_lanes_avx2(rows: [&[f32]; 3], out: &mut [f32]) {
+    scalar::median3x3_row_lanes(rows, out, Level::Avx2)
+}
+
 /// The most lanes the register kernel keeps (four 64-lane registers); longer vectors take the
 /// per-pixel kernel.
 const MAX_REGISTER_LANES: usize = 256;

@@ -306,3 +306,134 @@ pub(crate) fn census_span_scalar(
         }
     }
 }
+
+/// `f32::total_cmp` order as a plain `i32` order (an involution on the bits).
+#[inline(always)]
+pub(crate) fn median_key(bits: u32) -> i32 {
+    (bits ^ (((bits as i32) >> 31) as u32 >> 1)) as i32
+}
+
+/// The readable reference of [`super::median3x3_row`]: each pixel `x` of `out` whose centre
+/// `rows[1][x + 1]` is valid becomes the median of the valid (non-NaN) values of its 3 × 3
+/// window `rows[0..3][x..x + 3]` in `f32::total_cmp` order, the mean of the two middle ones for
+/// an even count; a hole (NaN, any payload) is copied.
+#[cfg(test)]
+pub(crate) fn median3x3_row_scalar(rows: [&[f32]; 3], out: &mut [f32]) {
+    for (x, o) in out.iter_mut().enumerate() {
+        let centre = rows[1][x + 1];
+        if centre.is_nan() {
+            *o = centre;
+            continue;
+        }
+        let mut window: Vec<f32> =
+            rows.iter().flat_map(|r| &r[x..x + 3]).copied().filter(|v| !v.is_nan()).collect();
+        window.sort_unstable_by(f32::total_cmp);
+        let n = window.len();
+        *o = if n % 2 == 1 { window[n / 2] } else { 0.5 * (window[n / 2 - 1] + window[n / 2]) };
+    }
+}
+
+/// Runs the exchanges of Paeth's median-of-nine network (as in Devillard's `opt_med9`) on the
+/// window entries `$w` (each `$lanes` lanes) with the minimum and maximum `$min`, `$max`:
+/// afterwards entry 4 holds the median. In every pair the first entry receives the smaller key.
+/// Written out (not a loop over a table) so that the entries stay in registers.
+macro_rules! median9_network {
+    ($w:ident, $min:expr, $max:expr) => {
+        median9_network!(@ $w, $min, $max; (1, 2) (4, 5) (7, 8) (0, 1) (3, 4) (6, 7) (1, 2) (4, 5)
+            (7, 8) (0, 3) (5, 8) (4, 7) (3, 6) (1, 4) (2, 5) (4, 7) (2, 4) (4, 6) (2, 4))
+    };
+    (@ $w:ident, $min:expr, $max:expr; $(($a:literal, $b:literal))*) => {
+        $(
+            let (p, q) = ($w[$a], $w[$b]);
+            $w[$a] = $min(p, q);
+            $w[$b] = $max(p, q);
+        )*
+    };
+}
+// The AVX-512 kernel runs the same network on its registers.
+#[cfg(target_arch = "x86_64")]
+pub(crate) use median9_network;
+
+/// Entry 4 of the median network over the window keys `w` whose holes (`hole`, 1 per hole)
+/// became `low` lowest keys and the rest highest ones, per lane: with `h` holes and `low =
+/// ⌊h/2⌋` it is the median of the valid keys (an odd count) or the upper of the two middle ones
+/// (an even count); with `low = ⌈h/2⌉` the lower one. No valid key equals a sentinel:
+/// `i32::MIN` and `i32::MAX` are keys of NaNs.
+#[inline(always)]
+fn median_with_sentinels<const B: usize>(
+    w: &[[i32; B]; 9],
+    hole: &[[i32; B]; 9],
+    low: &[i32; B],
+) -> [i32; B] {
+    let mut w = *w;
+    let mut seen = [0i32; B];
+    for (entry, hole) in w.iter_mut().zip(hole) {
+        for l in 0..B {
+            let sentinel = if seen[l] < low[l] { i32::MIN } else { i32::MAX };
+            entry[l] = if hole[l] != 0 { sentinel } else { entry[l] };
+            seen[l] += hole[l];
+        }
+    }
+    let min = |p: [i32; B], q: [i32; B]| std::array::from_fn(|l| p[l].min(q[l]));
+    let max = |p: [i32; B], q: [i32; B]| std::array::from_fn(|l| p[l].max(q[l]));
+    median9_network!(w, min, max);
+    w[4]
+}
+
+/// [`median3x3_row_scalar`] for the `B` pixels from `x`, written as lanes the compiler
+/// vectorises (`i32` throughout): a window without holes runs the median network once; one with
+/// holes runs it with the holes as sentinels ([`median_with_sentinels`]), twice where a lane has
+/// an even count of valid values (the mean of the two middle ones).
+#[inline(always)]
+fn median3x3_lanes<const B: usize>(rows: [&[f32]; 3], x: usize, out: &mut [f32]) {
+    let mut w = [[0i32; B]; 9];
+    let mut hole = [[0i32; B]; 9];
+    let mut holes = [0i32; B];
+    for (i, (entry, hole)) in w.iter_mut().zip(&mut hole).enumerate() {
+        let row = &rows[i / 3][x + i % 3..x + i % 3 + B];
+        for l in 0..B {
+            let bits = row[l].to_bits();
+            entry[l] = median_key(bits);
+            hole[l] = i32::from(bits & 0x7fff_ffff > 0x7f80_0000);
+            holes[l] += hole[l];
+        }
+    }
+    let from_key = |k: i32| f32::from_bits(median_key(k as u32) as u32);
+    let out = &mut out[x..x + B];
+    if holes.iter().fold(0, |a, &h| a | h) == 0 {
+        let min = |p: [i32; B], q: [i32; B]| std::array::from_fn(|l| p[l].min(q[l]));
+        let max = |p: [i32; B], q: [i32; B]| std::array::from_fn(|l| p[l].max(q[l]));
+        median9_network!(w, min, max);
+        for (o, &k) in out.iter_mut().zip(&w[4]) {
+            *o = from_key(k);
+        }
+        return;
+    }
+    let upper = median_with_sentinels(&w, &hole, &holes.map(|h| h >> 1));
+    let lower = if holes.iter().fold(0, |a, &h| a | (h & 1)) != 0 {
+        median_with_sentinels(&w, &hole, &holes.map(|h| (h + 1) >> 1))
+    } else {
+        upper
+    };
+    let centre = &rows[1][x + 1..x + 1 + B];
+    for l in 0..B {
+        let (lo, hi) = (from_key(lower[l]), from_key(upper[l]));
+        let median = if holes[l] & 1 == 1 { 0.5 * (lo + hi) } else { hi };
+        out[l] = if hole[4][l] != 0 { centre[l] } else { median };
+    }
+}
+
+/// [`median3x3_row_scalar`] as lanes the compiler vectorises at each level (8 pixels at a time,
+/// one 256-bit register per window entry): the kernel below AVX-512 and for the AVX-512
+/// kernel's last pixels.
+#[inline(always)]
+pub(crate) fn median3x3_row_lanes(rows: [&[f32]; 3], out: &mut [f32], _level: super::Level) {
+    const B: usize = 8;
+    let blocks = out.len() - out.len() % B;
+    for x in (0..blocks).step_by(B) {
+        median3x3_lanes::<B>(rows, x, out);
+    }
+    for x in blocks..out.len() {
+        median3x3_lanes::<1>(rows, x, out);
+    }
+}

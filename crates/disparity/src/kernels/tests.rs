@@ -247,6 +247,46 @@ proptest! {
 }
 
 proptest! {
+    /// Rows of disparities with holes (NaNs of several payloads and signs), equal values, both
+    /// zeros and infinities, of lengths that leave partial blocks of 16 and 8: every level's
+    /// median equals the sorting reference bit for bit, and so do the lanes the other levels
+    /// compile.
+    #[test]
+    fn median3x3_row_kernels_match_the_scalar_reference(
+        values in prop::collection::vec(0u8..40, 3..160), holes in 0u8..10, seed in any::<u64>(),
+    ) {
+        let width = values.len() / 3;
+        let mut s = seed | 1;
+        let mut next = move || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s };
+        let special = [f32::NAN, -f32::NAN, f32::from_bits(0x7fc0_0003), -0.0, 0.0, f32::INFINITY];
+        let framed: Vec<Vec<f32>> = values.chunks_exact(width).take(3).map(|row| {
+            std::iter::once(f32::NAN).chain(row.iter().map(|&v| {
+                let r = next();
+                if (r % 10) < u64::from(holes) {
+                    special[(r >> 8) as usize % 3]
+                } else if r % 97 == 11 {
+                    special[3 + (r >> 8) as usize % 3]
+                } else {
+                    f32::from(v) * 0.25 - 2.0
+                }
+            })).chain(std::iter::once(f32::NAN)).collect()
+        }).collect();
+        let rows = [&framed[0][..], &framed[1][..], &framed[2][..]];
+        let mut reference = vec![1.0f32; width];
+        median3x3_row_scalar(rows, &mut reference);
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        for level in supported_levels() {
+            let mut out = vec![1.0f32; width];
+            median3x3_row(level, rows, &mut out);
+            prop_assert_eq!(bits(&out), bits(&reference), "{:?}", level);
+        }
+        let mut lanes = vec![1.0f32; width];
+        median3x3_row_lanes(rows, &mut lanes, Level::Scalar);
+        prop_assert_eq!(bits(&lanes), bits(&reference));
+    }
+}
+
+proptest! {
     #[test]
     fn argmin_kernels_match_the_scalar_reference(values in prop::collection::vec(0u16..40, 1..150),
                                                  big in any::<bool>()) {

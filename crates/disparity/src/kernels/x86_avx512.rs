@@ -13,10 +13,12 @@ use super::layout::{
 use super::x86_avx2::hmin_epu16_256;
 
 mod census;
+mod median;
 mod row;
 #[cfg(test)]
 pub(super) use census::transpose_64x64;
 pub(super) use census::{census_row_avx512, census_row_gfni, census_row_gfni_bytes};
+pub(super) use median::median3x3_row_avx512;
 pub(super) use row::{row_avx512, row_avx512_vbmi};
 
 /// Minimum of the 32 unsigned 16-bit lanes.
