@@ -34,44 +34,62 @@ pub(crate) fn snap_edges(disparity: &DisparityMap, guide: &GrayImage, radius: us
     }
     let (src, grey) = (disparity.as_slice(), guide.as_slice());
     let mut rows = disparity.clone();
-    rows.as_mut_slice().par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+    rows.as_mut_slice().par_chunks_mut(w).enumerate().for_each_init(Vec::new, |found, (y, out)| {
         let line = Line { src: &src[y * w..(y + 1) * w], grey: &grey[y * w..(y + 1) * w], stride: 1 };
-        for x in jumps(&line.src[..w - 1], &line.src[1..]) {
-            snap_jump(&line, 0, w, x + 1, radius, out);
+        jumps(&line.src[..w - 1], &line.src[1..], found);
+        for &x in found.iter() {
+            let (run, value) = snap_jump(&line, 0, w, x as usize + 1, radius);
+            out[run].fill(value);
         }
     });
-    // Columns: the jumps found row pair by row pair (whole rows read, in parallel), then each
-    // followed down or up its own column, a column's jumps in the order of their rows as a pass
-    // along the column takes them (jumps are rare).
-    let src = rows.as_slice();
-    let column_jumps: Vec<Vec<u32>> = (1..h)
+    // Columns: the jumps found row pair by row pair and each followed down or up its own column
+    // (in parallel: they only read the rows' result), then the runs written in the order a pass
+    // along each column takes its jumps, in place (jumps are rare).
+    let line = Line { src: rows.as_slice(), grey, stride: w };
+    let runs: Vec<Vec<(u32, std::ops::Range<usize>, f32)>> = (1..h)
         .into_par_iter()
-        .map(|y| jumps(&src[(y - 1) * w..y * w], &src[y * w..(y + 1) * w]).map(|x| x as u32).collect())
+        .map_init(Vec::new, |found, y| {
+            jumps(&line.src[(y - 1) * w..y * w], &line.src[y * w..(y + 1) * w], found);
+            found
+                .iter()
+                .map(|&x| (x, snap_jump(&line, x as usize, h, y, radius)))
+                .map(|(x, (r, v))| (x, r, v))
+                .collect()
+        })
         .collect();
-    let mut snapped = rows.clone();
-    let out = snapped.as_mut_slice();
-    let line = Line { src, grey, stride: w };
-    for (y, xs) in (1..h).zip(&column_jumps) {
-        for &x in xs {
-            snap_jump(&line, x as usize, h, y, radius, out);
+    let out = rows.as_mut_slice();
+    for (x, run, value) in runs.into_iter().flatten() {
+        for i in run {
+            out[x as usize + i * w] = value;
         }
     }
-    snapped
+    rows
 }
 
 /// The indices `i` where `b[i]` and `a[i]` differ by more than [`SNAP_JUMP`] (a NaN on either
-/// side is no jump: the comparison is false), a block of 16 tested at once.
-fn jumps<'a>(a: &'a [f32], b: &'a [f32]) -> impl Iterator<Item = usize> + 'a {
+/// side is no jump: the comparison is false), into `out` in increasing order: a block of 16
+/// tested at once into a bit mask (a loop the compiler vectorises), then its set bits.
+fn jumps(a: &[f32], b: &[f32], out: &mut Vec<u32>) {
     const BLOCK: usize = 16;
-    let is_jump = |i: usize| (b[i] - a[i]).abs() > SNAP_JUMP;
-    (0..a.len().div_ceil(BLOCK)).flat_map(move |k| {
-        let block = k * BLOCK..((k + 1) * BLOCK).min(a.len());
-        let any = a[block.clone()]
-            .iter()
-            .zip(&b[block.clone()])
-            .fold(false, |any, (&a, &b)| any | ((b - a).abs() > SNAP_JUMP));
-        block.filter(move |&i| any && is_jump(i))
-    })
+    out.clear();
+    let mut push_block = |start: usize, a: &[f32], b: &[f32]| {
+        let mut mask = 0u32;
+        for (j, (&a, &b)) in a.iter().zip(b).enumerate() {
+            mask |= u32::from((b - a).abs() > SNAP_JUMP) << j;
+        }
+        while mask != 0 {
+            out.push((start + mask.trailing_zeros() as usize) as u32);
+            mask &= mask - 1;
+        }
+    };
+    let (a_blocks, b_blocks) = (a.chunks_exact(BLOCK), b.chunks_exact(BLOCK));
+    let tail = a.len() - a_blocks.remainder().len();
+    let (a_tail, b_tail) = (a_blocks.remainder(), b_blocks.remainder());
+    for (k, (a, b)) in a_blocks.zip(b_blocks).enumerate() {
+        let (a, b): (&[f32; BLOCK], &[f32; BLOCK]) = (a.try_into().unwrap(), b.try_into().unwrap());
+        push_block(k * BLOCK, a, b);
+    }
+    push_block(tail, a_tail, b_tail);
 }
 
 /// A row (`stride` 1) or all the columns (`stride` = width) of a map and its guide image.
@@ -82,9 +100,15 @@ struct Line<'a> {
 }
 
 /// The jump between pixels `i - 1` and `i` (`1 <= i < n`) of the line starting at `start`: moves
-/// it across the foreground plateau to the strongest intensity step within `radius`, writing into
-/// `out` (laid out as `line.src`).
-fn snap_jump(line: &Line<'_>, start: usize, n: usize, i: usize, radius: usize, out: &mut [f32]) {
+/// it across the foreground plateau to the strongest intensity step within `radius`: the run of
+/// the line's pixels that takes the background's disparity, and that disparity.
+fn snap_jump(
+    line: &Line<'_>,
+    start: usize,
+    n: usize,
+    i: usize,
+    radius: usize,
+) -> (std::ops::Range<usize>, f32) {
     let at = |i: usize| start + i * line.stride;
     let src = |i: usize| line.src[at(i)];
     // The intensity step between pixels i - 1 and i, in 8-bit grey levels.
@@ -107,9 +131,7 @@ fn snap_jump(line: &Line<'_>, start: usize, n: usize, i: usize, radius: usize, o
                 best_step = s;
             }
         }
-        for i in x..best {
-            out[at(i)] = a;
-        }
+        (x..best, a)
     } else {
         // Foreground up to x - 1: look left.
         for i in (x.saturating_sub(radius).max(1)..x).rev() {
@@ -122,9 +144,7 @@ fn snap_jump(line: &Line<'_>, start: usize, n: usize, i: usize, radius: usize, o
                 best_step = s;
             }
         }
-        for i in best..x {
-            out[at(i)] = b;
-        }
+        (best..x, b)
     }
 }
 
