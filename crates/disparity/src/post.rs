@@ -147,21 +147,23 @@ pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRa
     let start = (0..width).find(|&x| is_full(x)).unwrap_or(width);
     let end = (start..width).find(|&x| !is_full(x)).unwrap_or(width);
     let tag = tagged_nan(PixelStatus::RangeEnd);
+    // The other columns' searched ends (`lo`, `hi`), computed once: every row tests its pixels
+    // against them in a loop the compiler vectorises (a NaN is at no end).
+    let searched = |x: usize| {
+        let ks = crate::wta::feasible_left(x, width, range);
+        (range.min as f32 + ks.start as f32, range.min as f32 + ks.end as f32 - 1.0)
+    };
+    let (left_band, right_band): (Vec<_>, Vec<_>) =
+        ((0..start).map(searched).collect(), (end..width).map(searched).collect());
     let rows_per_task = disparity.height().div_ceil(16).max(1);
     disparity.as_mut_slice().par_chunks_mut(width.max(1) * rows_per_task).for_each(|rows| {
         for row in rows.chunks_exact_mut(width.max(1)) {
-            for x in (0..start).chain(end..width) {
-                let d = &mut row[x];
-                if d.is_nan() {
-                    continue;
-                }
-                let ks = crate::wta::feasible_left(x, width, range);
-                let (lo, hi) = (range.min as f32 + ks.start as f32, range.min as f32 + ks.end as f32 - 1.0);
-                if ends.at_end(*d, lo, hi) {
-                    *d = tag;
-                }
+            let (left, rest) = row.split_at_mut(start);
+            let (full, right) = rest.split_at_mut(end - start);
+            for (d, &(lo, hi)) in left.iter_mut().zip(&left_band).chain(right.iter_mut().zip(&right_band)) {
+                *d = if ends.at_end(*d, lo, hi) { tag } else { *d };
             }
-            for d in &mut row[start..end] {
+            for d in full {
                 *d = if *d == first || *d == last { tag } else { *d };
             }
         }
