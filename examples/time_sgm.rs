@@ -4,7 +4,8 @@
 //!
 //! `cargo run --release --example time_sgm -- DATA_DIR [RUNS] [fast|balanced|accurate] [fill]`
 //! (`TIME_COST_ROWS=1` times the cost rows alone, `TIME_AGGREGATION=1` the aggregation and
-//! selection alone)
+//! selection alone, `TIME_POST=1` the post-processing of the selected map alone, `TIME_POST=median`
+//! its 3×3 median alone)
 
 use std::path::Path;
 use std::time::Instant;
@@ -37,20 +38,41 @@ fn main() {
         if cost_rows.as_deref() == Some("census") {
             params.matching_cost = stereo_disparity::MatchingCost::Census;
         }
+        let post = std::env::var("TIME_POST").ok();
         let stage = if cost_rows.is_some() {
             "cost rows"
         } else if std::env::var_os("TIME_AGGREGATION").is_some() {
             "aggregation"
+        } else if post.as_deref() == Some("median") {
+            "median"
+        } else if post.is_some() {
+            "post"
         } else {
             ""
         };
         if !stage.is_empty() {
-            // One stage alone, for tuning its kernel: the cost rows (census + AD term), or the path
-            // aggregation and selection (census cost, costs computed on the fly).
+            // One stage alone, for tuning its kernel: the cost rows (census + AD term), the path
+            // aggregation and selection (census cost, costs computed on the fly), or the
+            // post-processing of the map they select (or its median).
             let census_left = stereo_disparity::stages::census(&left, &params);
             let census_right = stereo_disparity::stages::census(&right, &params);
+            let selected = post.is_some().then(|| {
+                stereo_disparity::stages::aggregate_and_select_disparities(
+                    &left,
+                    &census_left,
+                    &census_right,
+                    &params,
+                )
+            });
             let (med, min) = median_and_min_ms(runs, || {
-                if cost_rows.is_some() {
+                if let Some(selected) = &selected {
+                    let d = if stage == "median" {
+                        stereo_disparity::stages::median(selected)
+                    } else {
+                        stereo_disparity::stages::post_process(selected, &left, &params)
+                    };
+                    std::hint::black_box(d);
+                } else if cost_rows.is_some() {
                     let c = stereo_disparity::stages::matching_costs(
                         &left,
                         &right,
