@@ -146,9 +146,12 @@ fn reject_islands(
                 move |(t, (stretch, &r))| {
                     let any = stretch.iter().fold(false, |any, &v| any | far_behind(r, v));
                     let x0 = t * TILE;
-                    stretch.iter().enumerate().filter_map(move |(j, &v)| {
-                        (any && far_behind(r, v)).then_some((y * w + x0 + j) as u32)
-                    })
+                    // A stretch without a start yields nothing without visiting its pixels.
+                    let stretch = if any { stretch } else { &stretch[..0] };
+                    stretch
+                        .iter()
+                        .enumerate()
+                        .filter_map(move |(j, &v)| far_behind(r, v).then_some((y * w + x0 + j) as u32))
                 },
             )
         })
