@@ -157,14 +157,19 @@ pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRa
         ((0..start).map(searched).collect(), (end..width).map(searched).collect());
     let rows_per_task = disparity.height().div_ceil(16).max(1);
     disparity.as_mut_slice().par_chunks_mut(width.max(1) * rows_per_task).for_each(|rows| {
+        // Copies, not captured references, so that the loops below vectorise.
+        let (first, last, tag, ends) = (first, last, tag, ends);
         for row in rows.chunks_exact_mut(width.max(1)) {
             let (left, rest) = row.split_at_mut(start);
             let (full, right) = rest.split_at_mut(end - start);
-            for (d, &(lo, hi)) in left.iter_mut().zip(&left_band).chain(right.iter_mut().zip(&right_band)) {
+            for (d, &(lo, hi)) in left.iter_mut().zip(&left_band) {
+                *d = if ends.at_end(*d, lo, hi) { tag } else { *d };
+            }
+            for (d, &(lo, hi)) in right.iter_mut().zip(&right_band) {
                 *d = if ends.at_end(*d, lo, hi) { tag } else { *d };
             }
             for d in full {
-                *d = if *d == first || *d == last { tag } else { *d };
+                *d = if (*d == first) | (*d == last) { tag } else { *d };
             }
         }
     });
