@@ -547,6 +547,8 @@ pub(crate) fn p2_row_u8(level: Level, table: &[u8; 256], a: &[u16], b: &[u16], o
 /// each framed by one value on either side (NaN beyond the map), `out` the row's pixels. With
 /// AVX-512 16 pixels per step (the last ones as on the other levels), elsewhere lanes the
 /// compiler vectorises ([`scalar::median3x3_row_lanes`]).
+// Elsewhere there are only the lanes.
+#[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
 pub(crate) fn median3x3_row(level: Level, rows: [&[f32]; 3], out: &mut [f32]) {
     assert!(rows.iter().all(|r| r.len() == out.len() + 2));
     // SAFETY: AVX-512F/BW/VL (the level is only chosen when present); lengths checked above.
@@ -560,10 +562,10 @@ pub(crate) fn median3x3_row(level: Level, rows: [&[f32]; 3], out: &mut [f32]) {
     match level {
         // SAFETY: AVX2 is part of both levels, which are only chosen when present.
         Level::Avx2 | Level::Avx512 => unsafe { median3x3_row_lanes_avx2(rows, out) },
-        Level::Scalar => scalar::median3x3_row_lanes(rows, out, level),
+        Level::Scalar => scalar::median3x3_row_lanes(rows, out),
     }
     #[cfg(not(target_arch = "x86_64"))]
-    scalar::median3x3_row_lanes(rows, out, level);
+    scalar::median3x3_row_lanes(rows, out);
 }
 
 /// [`scalar::median3x3_row_lanes`] compiled for AVX2.
@@ -573,7 +575,7 @@ pub(crate) fn median3x3_row(level: Level, rows: [&[f32]; 3], out: &mut [f32]) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn median3x3_row_lanes_avx2(rows: [&[f32]; 3], out: &mut [f32]) {
-    scalar::median3x3_row_lanes(rows, out, Level::Avx2)
+    scalar::median3x3_row_lanes(rows, out)
 }
 
 /// The most lanes the register kernel keeps (four 64-lane registers); longer vectors take the

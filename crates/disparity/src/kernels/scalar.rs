@@ -354,6 +354,17 @@ macro_rules! median9_network {
 #[cfg(target_arch = "x86_64")]
 pub(crate) use median9_network;
 
+/// Lane-wise minimum and maximum of `B` keys, the network's exchange.
+#[inline(always)]
+fn lanes_min<const B: usize>(p: [i32; B], q: [i32; B]) -> [i32; B] {
+    std::array::from_fn(|l| p[l].min(q[l]))
+}
+
+#[inline(always)]
+fn lanes_max<const B: usize>(p: [i32; B], q: [i32; B]) -> [i32; B] {
+    std::array::from_fn(|l| p[l].max(q[l]))
+}
+
 /// Entry 4 of the median network over the window keys `w` whose holes (`hole`, 1 per hole)
 /// became `low` lowest keys and the rest highest ones, per lane: with `h` holes and `low =
 /// ⌊h/2⌋` it is the median of the valid keys (an odd count) or the upper of the two middle ones
@@ -374,9 +385,7 @@ fn median_with_sentinels<const B: usize>(
             seen[l] += hole[l];
         }
     }
-    let min = |p: [i32; B], q: [i32; B]| std::array::from_fn(|l| p[l].min(q[l]));
-    let max = |p: [i32; B], q: [i32; B]| std::array::from_fn(|l| p[l].max(q[l]));
-    median9_network!(w, min, max);
+    median9_network!(w, lanes_min, lanes_max);
     w[4]
 }
 
@@ -401,9 +410,7 @@ fn median3x3_lanes<const B: usize>(rows: [&[f32]; 3], x: usize, out: &mut [f32])
     let from_key = |k: i32| f32::from_bits(median_key(k as u32) as u32);
     let out = &mut out[x..x + B];
     if holes.iter().fold(0, |a, &h| a | h) == 0 {
-        let min = |p: [i32; B], q: [i32; B]| std::array::from_fn(|l| p[l].min(q[l]));
-        let max = |p: [i32; B], q: [i32; B]| std::array::from_fn(|l| p[l].max(q[l]));
-        median9_network!(w, min, max);
+        median9_network!(w, lanes_min, lanes_max);
         for (o, &k) in out.iter_mut().zip(&w[4]) {
             *o = from_key(k);
         }
@@ -427,7 +434,7 @@ fn median3x3_lanes<const B: usize>(rows: [&[f32]; 3], x: usize, out: &mut [f32])
 /// one 256-bit register per window entry): the kernel below AVX-512 and for the AVX-512
 /// kernel's last pixels.
 #[inline(always)]
-pub(crate) fn median3x3_row_lanes(rows: [&[f32]; 3], out: &mut [f32], _level: super::Level) {
+pub(crate) fn median3x3_row_lanes(rows: [&[f32]; 3], out: &mut [f32]) {
     const B: usize = 8;
     let blocks = out.len() - out.len() % B;
     for x in (0..blocks).step_by(B) {
