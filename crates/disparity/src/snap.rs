@@ -52,8 +52,10 @@ pub(crate) fn snap_edges(disparity: &DisparityMap, guide: &GrayImage, radius: us
             jumps(&line.src[(y - 1) * w..y * w], &line.src[y * w..(y + 1) * w], found);
             found
                 .iter()
-                .map(|&x| (x, snap_jump(&line, x as usize, h, y, radius)))
-                .map(|(x, (r, v))| (x, r, v))
+                .map(|&x| {
+                    let (run, value) = snap_jump(&line, x as usize, h, y, radius);
+                    (x, run, value)
+                })
                 .collect()
         })
         .collect();
