@@ -18,15 +18,22 @@ pub(crate) fn median_3x3(disparity: &DisparityMap) -> DisparityMap {
         // The rows above, at and below each row, framed by holes (the windows of border pixels
         // reach beyond the map).
         let mut framed: [Vec<f32>; 3] = std::array::from_fn(|_| vec![f32::NAN; width + 2]);
-        for (i, row) in rows.chunks_mut(width.max(1)).enumerate() {
-            let y = task * rows_per_task + i;
-            for (line, r) in framed.iter_mut().zip([y.wrapping_sub(1), y, y + 1]) {
-                if r < height {
-                    line[1..=width].copy_from_slice(&disparity.as_slice()[r * width..(r + 1) * width]);
-                } else {
-                    line.fill(f32::NAN);
-                }
+        let load = |line: &mut Vec<f32>, r: usize| {
+            if r < height {
+                line[1..=width].copy_from_slice(&disparity.as_slice()[r * width..(r + 1) * width]);
+            } else {
+                line.fill(f32::NAN);
             }
+        };
+        let y0 = task * rows_per_task;
+        load(&mut framed[0], y0.wrapping_sub(1));
+        load(&mut framed[1], y0);
+        for (i, row) in rows.chunks_mut(width.max(1)).enumerate() {
+            // The rows move up by one: only the row below is read anew.
+            if i > 0 {
+                framed.rotate_left(1);
+            }
+            load(&mut framed[2], y0 + i + 1);
             let [above, at, below] = &framed;
             crate::kernels::median3x3_row(level, [above, at, below], row);
         }

@@ -62,8 +62,8 @@ pub(crate) fn tagged_nan(status: PixelStatus) -> f32 {
 }
 
 /// The status of a pixel of a map whose NaNs are tagged ([`tagged_nan`]); a plain NaN is
-/// [`PixelStatus::NoMatch`]. The readable reference of [`untag`]'s statuses.
-#[cfg(test)]
+/// [`PixelStatus::NoMatch`].
+#[inline]
 pub(crate) fn status_of(value: f32) -> PixelStatus {
     if value.is_nan() {
         match (value.to_bits() & 0xff) as u8 {
@@ -84,19 +84,11 @@ pub(crate) fn untag(disparity: &mut DisparityMap) -> Image<u8> {
         .par_chunks_mut(w.max(1))
         .zip(disparity.as_mut_slice().par_chunks_mut(w.max(1)))
         .for_each(|(status, disparity)| {
-            // `status_of` without branches (a loop the compiler vectorises): a NaN's payload byte
-            // is its code where that names a status, else NoMatch.
             for (s, d) in status.iter_mut().zip(disparity) {
-                let bits = d.to_bits();
-                let nan = bits & 0x7fff_ffff > 0x7f80_0000;
-                let code = bits as u8;
-                let code = if (PixelStatus::Ambiguous as u8..=PixelStatus::FarIsland as u8).contains(&code) {
-                    code
-                } else {
-                    PixelStatus::NoMatch as u8
-                };
-                *s = if nan { code } else { PixelStatus::Matched as u8 };
-                *d = if nan { f32::NAN } else { *d };
+                *s = status_of(*d) as u8;
+                if d.is_nan() {
+                    *d = f32::NAN;
+                }
             }
         });
     status
