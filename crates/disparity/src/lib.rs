@@ -44,6 +44,7 @@ mod speckle;
 pub mod stages;
 mod status;
 mod tone;
+mod widen;
 mod winner;
 mod wta;
 

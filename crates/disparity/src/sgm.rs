@@ -11,6 +11,7 @@ use crate::memory;
 use crate::post::{Adaptation, SearchReport, SgmOutput};
 use crate::radiometric::{blockiness, CoarseMatch};
 use crate::tone::{ToneCorrection, ToneSample, Vignetting};
+use crate::widen::{replicate, widen_disparity};
 use crate::wta::Selection;
 use crate::{
     check_pair, DisparityMap, DisparityRange, Downscale, Error, GrayImage, Image, MatchingCost, Search,
@@ -307,7 +308,7 @@ fn match_downscaled(
             }
         })
         .unzip();
-    let disparity = replicate(&small_disparity, small_width, f, width, height);
+    let disparity = widen_disparity(&small_disparity, small_width, f, width, height);
     let status = replicate(&small_status, small_width, f, width, height);
     let confidence =
         small.confidence.as_ref().map(|c| replicate(c.as_slice(), small_width, f, width, height));
@@ -318,58 +319,6 @@ fn match_downscaled(
         adaptation: small.adaptation,
         search: SearchReport { downscale: f * small.search.downscale, ..small.search },
     })
-}
-
-/// `small` (`small_width` wide) brought to `width × height`: each pixel covers `f × f` pixels,
-/// the last row and column repeat where the size is not a multiple of `f`. Each reduced row is
-/// widened once into the first of its `f` rows, which the others copy.
-fn replicate<T: Copy + Send + Sync>(
-    small: &[T],
-    small_width: usize,
-    f: usize,
-    width: usize,
-    height: usize,
-) -> Image<T> {
-    let small_height = small.len() / small_width;
-    let widen = |y: usize, row: &mut [T]| {
-        let at = (y / f).min(small_height - 1) * small_width;
-        let small_row = &small[at..at + small_width];
-        // Whole blocks of `f` (a loop the compiler unrolls for the usual factors), then the tail.
-        let blocks = (small_width - 1) * f;
-        match f {
-            2 => widen_by::<T, 2>(small_row, &mut row[..blocks]),
-            3 => widen_by::<T, 3>(small_row, &mut row[..blocks]),
-            4 => widen_by::<T, 4>(small_row, &mut row[..blocks]),
-            _ => {
-                for (block, &v) in row[..blocks].chunks_exact_mut(f).zip(small_row) {
-                    block.fill(v);
-                }
-            }
-        }
-        row[blocks..].fill(small_row[small_width - 1]);
-    };
-    let mut out = vec![small[0]; width * height];
-    let whole = height / f * f;
-    let (blocks, tail) = out.split_at_mut(whole * width);
-    blocks.par_chunks_exact_mut(width * f).enumerate().for_each(|(block, rows)| {
-        let (first, rest) = rows.split_at_mut(width);
-        widen(block * f, first);
-        for row in rest.chunks_exact_mut(width) {
-            row.copy_from_slice(first);
-        }
-    });
-    for (i, row) in tail.chunks_exact_mut(width).enumerate() {
-        widen(whole + i, row);
-    }
-    Image::from_vec(width, height, out).expect("width * height samples")
-}
-
-/// `out` (`F` entries per entry of `small`, as many as fit) with each entry of `small` repeated.
-#[inline(always)]
-fn widen_by<T: Copy, const F: usize>(small: &[T], out: &mut [T]) {
-    for (block, &v) in out.chunks_exact_mut(F).zip(small) {
-        *<&mut [T; F]>::try_from(block).expect("F entries") = [v; F];
-    }
 }
 
 /// What [`SgmParams::adapt_to_pair`] does before aggregation, shared by the matcher and its scalar
@@ -805,10 +754,11 @@ mod tests {
     }
 
     #[test]
-    fn downscale_matches_the_reduced_pair_and_replicates_its_pixels() {
+    fn downscale_matches_the_reduced_pair_and_widens_its_map() {
         // A 101x61 pair shifted by 10 px (odd sizes: the last column and row repeat), matched
         // reduced by 2 against the explicit composition: box-reduce, match over 0..12 (24 / 2),
-        // replicate each pixel 2x2 with its disparity doubled. And the shift comes back.
+        // widen the map with its disparities doubled (the reference widening) and repeat each
+        // status 2x2. And the shift comes back.
         let left = GrayImage::from_fn(101, 61, |x, y| texture(x as i64 / 2, y as i64 / 2));
         let right = GrayImage::from_fn(101, 61, |x, y| texture((x as i64 + 10) / 2, y as i64 / 2));
         let params = SgmParams { range: DisparityRange::new(0, 24).unwrap(), ..SgmParams::default() };
@@ -823,16 +773,15 @@ mod tests {
         .unwrap();
         assert_eq!(reduced.disparity.size(), (101, 61));
         assert_eq!(reduced.search.downscale, 2);
+        let doubled: Vec<f32> = small.disparity.as_slice().iter().map(|&d| d * 2.0).collect();
+        let widened = crate::widen::widen_disparity_reference(&doubled, 50, 2, 101, 61);
         let mut right_px = 0;
         for y in 0..61 {
             for x in 0..101 {
                 let (sx, sy) = ((x / 2).min(49), (y / 2).min(29));
-                let expected = small.disparity.get(sx, sy) * 2.0;
+                let expected = widened.get(x, y);
                 let got = reduced.disparity.get(x, y);
-                assert!(
-                    got.to_bits() == expected.to_bits() || (got.is_nan() && expected.is_nan()),
-                    "({x},{y})"
-                );
+                assert_eq!(got.to_bits(), expected.to_bits(), "({x},{y})");
                 assert_eq!(reduced.status.get(x, y), small.status.get(sx, sy));
                 right_px += usize::from((got - 10.0).abs() <= 1.0);
             }
