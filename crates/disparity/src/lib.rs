@@ -123,9 +123,11 @@ pub enum Search {
 }
 
 /// Whether SGM matches the pair reduced, each side by the same factor (box filter, the range
-/// divided alike), and brings the result back to full size: each reduced pixel covers
-/// `f × f` pixels, its disparity times `f`. About `f³` less work, for disparities `f` times
-/// coarser and no detail below `f` pixels.
+/// divided alike), and brings the result back to full size, the disparities times `f`:
+/// interpolated between the reduced pixels where they lie on one surface (within one reduced
+/// pixel of each other), repeated over each reduced pixel's `f × f` pixels elsewhere (depth
+/// edges, holes) and for the statuses and confidences. About `f³` less work, for disparities `f`
+/// times coarser and no detail below `f` pixels.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Downscale {
     /// Halve the pair, again and again, while both views hold no detail finer than 2 px (at
