@@ -287,29 +287,28 @@ fn match_downscaled(
         DisparityRange { max: small_range.max.min(small_range.min + small_width as i32), ..small_range };
     // The factor was decided on the full pair (auto included): the reduced pair is matched as it is.
     let small_params = SgmParams { range: small_range, downscale: Downscale::By(1), ..params.clone() };
-    let small = sgm_detailed(&small_left, &small_right, &small_params)?;
+    let mut small = sgm_detailed(&small_left, &small_right, &small_params)?;
     drop((small_left, small_right));
 
     // A disparity that lands outside the range asked for is rejected, decided on the reduced map.
     let scale = f as f32;
     let (lo, hi) = (range.min as f32, (range.max - 1) as f32);
     let range_end = crate::PixelStatus::RangeEnd as u8;
-    let (small_disparity, small_status): (Vec<f32>, Vec<u8>) = small
-        .disparity
-        .as_slice()
-        .iter()
-        .zip(small.status.as_slice())
-        .map(|(&d, &s)| {
-            let v = d * scale;
+    let chunk = small_width * 16;
+    let statuses = small.status.as_mut_slice().par_chunks_mut(chunk);
+    small.disparity.as_mut_slice().par_chunks_mut(chunk).zip(statuses).for_each(|(disparity, status)| {
+        for (d, s) in disparity.iter_mut().zip(status) {
+            let v = *d * scale;
             if v.is_nan() || (lo..=hi).contains(&v) {
-                (v, s)
+                *d = v;
             } else {
-                (f32::NAN, range_end)
+                (*d, *s) = (f32::NAN, range_end);
             }
-        })
-        .unzip();
-    let disparity = widen_disparity(&small_disparity, small_width, f, width, height);
-    let status = replicate(&small_status, small_width, f, width, height);
+        }
+    });
+    let (small_disparity, small_status) = (small.disparity.as_slice(), small.status.as_slice());
+    let disparity = widen_disparity(small_disparity, small_width, f, width, height);
+    let status = replicate(small_status, small_width, f, width, height);
     let confidence =
         small.confidence.as_ref().map(|c| replicate(c.as_slice(), small_width, f, width, height));
     Ok(SgmOutput {
