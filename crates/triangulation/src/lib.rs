@@ -260,41 +260,103 @@ pub fn percentile_unsorted(values: &mut [f64], p: f64) -> Option<f64> {
     Some(at_lo + frac * (at_hi - at_lo))
 }
 
-/// [`percentile`] at each of `ps` of unsorted `values`, in `f32` (the samples' own type; the
-/// interpolation is in `f64` as in [`percentile`], so the results are the same). A radix
-/// selection: one pass counts the samples per bucket of the top 16 bits of their order key, so
-/// each rank needed is looked up in a bucket and selected among that bucket's samples alone
-/// (gathered in a second pass), instead of partitioning every sample for every rank.
+/// Ascending `u32` keys in `f32::total_cmp` order.
+#[inline(always)]
+fn order_key(v: f32) -> u32 {
+    let bits = v.to_bits();
+    if bits >> 31 == 1 {
+        !bits
+    } else {
+        bits | 1 << 31
+    }
+}
+
+/// The sample of an [`order_key`].
+fn from_order_key(key: u32) -> f32 {
+    f32::from_bits(if key >> 31 == 1 { key & !(1 << 31) } else { !key })
+}
+
+/// Samples per parallel task of the statistics' passes.
+const STATS_CHUNK: usize = 1 << 15;
+
+/// The valid samples of a map counted per bucket of the top 16 bits of their [`order_key`], and
+/// their smallest and largest keys: one parallel pass.
+struct KeyHistogram {
+    counts: Vec<u32>,
+    n: usize,
+    low: u32,
+    high: u32,
+}
+
+impl KeyHistogram {
+    fn empty() -> Self {
+        KeyHistogram { counts: vec![0; 1 << 16], n: 0, low: u32::MAX, high: 0 }
+    }
+
+    fn of(samples: &[f32], valid: &(impl Fn(f32) -> bool + Sync)) -> Self {
+        samples
+            .par_chunks(STATS_CHUNK)
+            .fold(Self::empty, |mut h, chunk| {
+                for &v in chunk {
+                    if valid(v) {
+                        let key = order_key(v);
+                        h.counts[(key >> 16) as usize] += 1;
+                        h.n += 1;
+                        h.low = h.low.min(key);
+                        h.high = h.high.max(key);
+                    }
+                }
+                h
+            })
+            .reduce(Self::empty, |mut a, b| {
+                for (a, b) in a.counts.iter_mut().zip(&b.counts) {
+                    *a += b;
+                }
+                KeyHistogram {
+                    n: a.n + b.n,
+                    low: a.low.min(b.low),
+                    high: a.high.max(b.high),
+                    counts: a.counts,
+                }
+            })
+    }
+}
+
+/// [`percentile`] at each of `ps` of the unsorted `values`, in `f32` (the samples' own type; the
+/// interpolation is in `f64` as in [`percentile`], so the results are the same).
+#[cfg(test)]
 fn percentiles_unsorted<const N: usize>(values: &[f32], ps: [f64; N]) -> [Option<f64>; N] {
-    let n = values.len();
+    let all = |_: f32| true;
+    percentiles_of(values, &all, &KeyHistogram::of(values, &all), ps)
+}
+
+/// [`percentile`] at each of `ps` of the samples of `samples` that are `valid`, found by a radix
+/// selection: `histogram` tells which bucket of keys holds each rank needed, a second pass
+/// gathers those buckets' samples, and each rank is selected among its bucket's samples alone
+/// (instead of partitioning every sample for every rank).
+fn percentiles_of<const N: usize>(
+    samples: &[f32],
+    valid: &(impl Fn(f32) -> bool + Sync),
+    histogram: &KeyHistogram,
+    ps: [f64; N],
+) -> [Option<f64>; N] {
+    let (n, counts) = (histogram.n, &histogram.counts);
     let mut out = [None; N];
     if n == 0 {
         return out;
     }
-    // Ascending `u32` keys in `f32::total_cmp` order.
-    let key = |v: f32| {
-        let bits = v.to_bits();
-        if bits >> 31 == 1 {
-            !bits
-        } else {
-            bits | 1 << 31
-        }
-    };
-    let mut counts = vec![0u32; 1 << 16];
-    for &v in values {
-        counts[(key(v) >> 16) as usize] += 1;
-    }
     // Samples below each bucket.
     let mut below = vec![0usize; 1 << 16];
     let mut total = 0usize;
-    for (b, &c) in below.iter_mut().zip(&counts) {
+    for (b, &c) in below.iter_mut().zip(counts) {
         *b = total;
         total += c as usize;
     }
     let bucket_of = |rank: usize| below.partition_point(|&b| b <= rank) - 1;
     // Each percentile's position between the ranks ⌊h⌋ and ⌊h⌋ + 1.
     let positions = ps.map(|p| (n - 1) as f64 * p.clamp(0.0, 100.0) / 100.0);
-    // The buckets of the ranks asked for, gathered once each.
+    // The buckets of the ranks asked for, gathered once each (in any order: a rank's value does
+    // not depend on it).
     let mut buckets: Vec<usize> = positions
         .iter()
         .flat_map(|&h| [h.floor() as usize, (h.floor() as usize + 1).min(n - 1)])
@@ -302,14 +364,29 @@ fn percentiles_unsorted<const N: usize>(values: &[f32], ps: [f64; N]) -> [Option
         .collect();
     buckets.sort_unstable();
     buckets.dedup();
-    let mut members: Vec<Vec<f32>> =
-        buckets.iter().map(|&b| Vec::with_capacity(counts[b] as usize)).collect();
-    for &v in values {
-        let b = (key(v) >> 16) as usize;
-        if let Ok(i) = buckets.binary_search(&b) {
-            members[i].push(v);
+    let (first, last) = (buckets[0], buckets[buckets.len() - 1]);
+    let gather = |mut members: Vec<Vec<f32>>, chunk: &[f32]| {
+        for &v in chunk {
+            let b = (order_key(v) >> 16) as usize;
+            // Most samples lie outside the gathered buckets' span: one test rejects them.
+            if (first..=last).contains(&b) && valid(v) {
+                if let Ok(i) = buckets.binary_search(&b) {
+                    members[i].push(v);
+                }
+            }
         }
-    }
+        members
+    };
+    let mut members: Vec<Vec<f32>> =
+        samples.par_chunks(STATS_CHUNK).fold(|| vec![Vec::new(); buckets.len()], gather).reduce(
+            || vec![Vec::new(); buckets.len()],
+            |mut a, b| {
+                for (a, b) in a.iter_mut().zip(b) {
+                    a.extend(b);
+                }
+                a
+            },
+        );
     let mut rank_value = |rank: usize| {
         let b = bucket_of(rank);
         let i = buckets.binary_search(&b).expect("every rank's bucket was gathered");
@@ -363,20 +440,25 @@ impl MapStats {
         Self::of_valid(disparity, f32::is_finite)
     }
 
-    fn of_valid(image: &Image<f32>, valid: impl Fn(f32) -> bool) -> Self {
+    fn of_valid(image: &Image<f32>, valid: impl Fn(f32) -> bool + Sync) -> Self {
         let (width, height) = image.size();
-        let values: Vec<f32> = image.as_slice().iter().copied().filter(|&v| valid(v)).collect();
+        let samples = image.as_slice();
+        // The sum in the samples' order (one thread), beside the parallel count of the
+        // percentiles' buckets and the extremes; then a pass that gathers the buckets the
+        // percentiles fall in (a radix selection: a sort of every valid pixel cost more than the
+        // triangulation itself).
+        let (sum, histogram) = rayon::join(
+            || samples.iter().copied().filter(|&v| valid(v)).map(f64::from).sum::<f64>(),
+            || KeyHistogram::of(samples, &valid),
+        );
         let total_pixels = width * height;
-        let valid_pixels = values.len();
+        let valid_pixels = histogram.n;
         let density_percent =
             if total_pixels == 0 { 0.0 } else { 100.0 * valid_pixels as f64 / total_pixels as f64 };
-        let mean = (valid_pixels > 0)
-            .then(|| values.iter().map(|&v| f64::from(v)).sum::<f64>() / valid_pixels as f64);
-        let min = values.iter().copied().min_by(f32::total_cmp).map(f64::from);
-        let max = values.iter().copied().max_by(f32::total_cmp).map(f64::from);
-        // Selection instead of sorting: a sort of every valid pixel cost more than the
-        // triangulation itself.
-        let [median, p5, p95] = percentiles_unsorted(&values, [50.0, 5.0, 95.0]);
+        let mean = (valid_pixels > 0).then(|| sum / valid_pixels as f64);
+        let min = (valid_pixels > 0).then(|| f64::from(from_order_key(histogram.low)));
+        let max = (valid_pixels > 0).then(|| f64::from(from_order_key(histogram.high)));
+        let [median, p5, p95] = percentiles_of(samples, &valid, &histogram, [50.0, 5.0, 95.0]);
         MapStats {
             width,
             height,
@@ -629,6 +711,49 @@ mod tests {
             }
         }
         assert_eq!(percentiles_unsorted(&[], [50.0]), [None]);
+    }
+
+    #[test]
+    fn map_stats_equal_a_sort_of_the_valid_samples() {
+        // Maps larger than a parallel task's chunk (several partial histograms merged), with
+        // holes, infinities, signed zeros and negatives: every statistic equals the sorted
+        // reference's, bit for bit (the mean summed in the samples' order as before).
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        for (w, h) in [(1, 1), (7, 3), (301, 257), (640, 111)] {
+            let data: Vec<f32> = (0..w * h)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    match state % 11 {
+                        0 => f32::NAN,
+                        1 => f32::INFINITY,
+                        2 => -0.0,
+                        3 => 0.0,
+                        _ => (state % 100_003) as f32 * 0.013 - 30.0,
+                    }
+                })
+                .collect();
+            let image = Image::from_vec(w, h, data.clone()).unwrap();
+            for (stats, valid) in [
+                (MapStats::from_disparity(&image), &(|v: f32| v.is_finite()) as &dyn Fn(f32) -> bool),
+                (MapStats::from_depth(&image), &|v: f32| v.is_finite() && v > 0.0),
+            ] {
+                let values: Vec<f32> = data.iter().copied().filter(|&v| valid(v)).collect();
+                let mut sorted: Vec<f64> = values.iter().map(|&v| f64::from(v)).collect();
+                sorted.sort_unstable_by(f64::total_cmp);
+                let bits = |v: Option<f64>| v.map(f64::to_bits);
+                assert_eq!(stats.valid_pixels, values.len());
+                assert_eq!(bits(stats.min), bits(sorted.first().copied()));
+                assert_eq!(bits(stats.max), bits(sorted.last().copied()));
+                let mean = (!values.is_empty())
+                    .then(|| values.iter().map(|&v| f64::from(v)).sum::<f64>() / values.len() as f64);
+                assert_eq!(bits(stats.mean), bits(mean));
+                for (got, p) in [(stats.median, 50.0), (stats.p5, 5.0), (stats.p95, 95.0)] {
+                    assert_eq!(bits(got), bits(percentile(&sorted, p)), "{w}x{h} p{p}");
+                }
+            }
+        }
     }
 
     #[test]
