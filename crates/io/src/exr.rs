@@ -24,7 +24,7 @@ fn exr_err(path: &Path, e: exr::error::Error) -> Error {
 /// Writes a single-part scanline EXR with the given named 32-bit float channels (e.g.
 /// `("Z", depth)`), uncompressed, atomically. (ZIP, OpenEXR's usual lossless compression, saved
 /// 12–36 % of a float depth map's size, whose low mantissa bytes do not compress, and took 25–60
-/// times as long to write: on a small pair longer than the match itself, docs/performance.md.)
+/// times as long to write: on a small pair longer than the match itself, docs/perf-notes.md.)
 /// All channels must have the same non-zero size and distinct, non-empty ASCII names.
 pub fn write_exr(path: &Path, channels: &[(&str, &Image<f32>)]) -> Result<(), Error> {
     let Some(&(_, first)) = channels.first() else {
