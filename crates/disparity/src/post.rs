@@ -159,15 +159,16 @@ pub(crate) fn reject_range_ends(disparity: &mut DisparityMap, range: DisparityRa
     disparity.as_mut_slice().par_chunks_mut(width.max(1) * rows_per_task).for_each(|rows| {
         // Copies, not captured references, so that the loops below vectorise.
         let (first, last, tag, ends) = (first, last, tag, ends);
+        let band = |cells: &mut [f32], searched: &[(f32, f32)]| {
+            for (d, &(lo, hi)) in cells.iter_mut().zip(searched) {
+                *d = if ends.at_end(*d, lo, hi) { tag } else { *d };
+            }
+        };
         for row in rows.chunks_exact_mut(width.max(1)) {
             let (left, rest) = row.split_at_mut(start);
             let (full, right) = rest.split_at_mut(end - start);
-            for (d, &(lo, hi)) in left.iter_mut().zip(&left_band) {
-                *d = if ends.at_end(*d, lo, hi) { tag } else { *d };
-            }
-            for (d, &(lo, hi)) in right.iter_mut().zip(&right_band) {
-                *d = if ends.at_end(*d, lo, hi) { tag } else { *d };
-            }
+            band(left, &left_band);
+            band(right, &right_band);
             for d in full {
                 *d = if (*d == first) | (*d == last) { tag } else { *d };
             }

@@ -66,6 +66,8 @@ pub(crate) fn widen_disparity(
     height: usize,
 ) -> Image<f32> {
     let small_height = small.len() / small_width;
+    // The reduced pair is the full one divided by f, rounded down (`radiometric::downsample`).
+    assert!(width >= f * small_width && height >= f * small_height);
     let rows = intervals(height, small_height, f);
     let same_surface = f as f32;
     let mut out = vec![0f32; width * height];
@@ -75,7 +77,7 @@ pub(crate) fn widen_disparity(
     let mut pieces = Vec::with_capacity(bands);
     let mut rest = &mut out[..];
     for b in 0..bands {
-        let (y0, y1) = (first_row(b * BAND), first_row((b + 1) * BAND).max(first_row(b * BAND)));
+        let (y0, y1) = (first_row(b * BAND), first_row((b + 1) * BAND));
         let (piece, tail) = std::mem::take(&mut rest).split_at_mut((y1 - y0) * width);
         pieces.push((y0, piece));
         rest = tail;
@@ -181,11 +183,11 @@ impl Widened {
     fn fill_by<const F: usize>(&mut self, row: &[f32], fractions: &[f32]) {
         let f = if F == 0 { fractions.len() } else { F };
         let n = row.len();
-        let width = self.value.len();
         // Interval k (k in 1..n) covers pixels f·(k − 1) + f/2 .. f·k + f/2; interval 0 the
-        // pixels before, interval n the pixels after (one reduced pixel each).
-        let lead = (f / 2).min(width);
-        let inner = (lead + f * (n - 1)).min(width);
+        // pixels before, interval n the pixels after (one reduced pixel each). The row is at
+        // least f·n wide ([`widen_disparity`]).
+        let lead = f / 2;
+        let inner = lead + f * (n - 1);
         let single = |v: f32| if v.is_finite() { (v, v) } else { (f32::NEG_INFINITY, f32::INFINITY) };
         let (first, last) = (single(row[0]), single(row[n - 1]));
         self.value[..lead].fill(row[0]);
@@ -194,11 +196,10 @@ impl Widened {
         self.value[inner..].fill(row[n - 1]);
         self.low[inner..].fill(last.0);
         self.high[inner..].fill(last.1);
-        let whole = (inner - lead) / f * f;
-        let blocks = self.value[lead..lead + whole]
+        let blocks = self.value[lead..inner]
             .chunks_exact_mut(f)
-            .zip(self.low[lead..lead + whole].chunks_exact_mut(f))
-            .zip(self.high[lead..lead + whole].chunks_exact_mut(f))
+            .zip(self.low[lead..inner].chunks_exact_mut(f))
+            .zip(self.high[lead..inner].chunks_exact_mut(f))
             .zip(row.windows(2));
         let fractions = &fractions[..f];
         for (((value, low), high), pair) in blocks {
@@ -213,22 +214,12 @@ impl Widened {
                 high[q] = hi;
             }
         }
-        // A last interval cut by the image's edge.
-        for x in lead + whole..inner {
-            let k = (x - lead) / f;
-            let (a, b) = (row[k], row[k + 1]);
-            let valid = a.is_finite() && b.is_finite();
-            self.value[x] = a + fractions[x - lead - k * f] * (b - a);
-            self.low[x] = if valid { smaller(a, b) } else { f32::NEG_INFINITY };
-            self.high[x] = if valid { larger(a, b) } else { f32::INFINITY };
-        }
-        let whole = (width / f).min(n) * f;
-        for (block, &v) in self.nearest[..whole].chunks_exact_mut(f).zip(row) {
+        for (block, &v) in self.nearest[..f * n].chunks_exact_mut(f).zip(row) {
             for out in block {
                 *out = v;
             }
         }
-        self.nearest[whole..].fill(row[(whole / f).min(n - 1)]);
+        self.nearest[f * n..].fill(row[n - 1]);
     }
 }
 
