@@ -366,9 +366,10 @@ pub struct MatchArgs {
     /// back to full size: about N³ times less work, for disparities N times coarser and no detail
     /// below N pixels. auto (default): halve, repeatedly, while both views hold no detail finer than
     /// 2 px (enlarged images, soft optics; sensor noise discounted) and at least 100 000 pixels
-    /// remain, reducing by 3 where it would halve twice (6 for three times); 1: full resolution
-    /// (docs/performance.md)
-    #[arg(long, value_name = "auto|N", help_heading = "Matching")]
+    /// remain, reducing by 3 where it would halve twice (6 for three times); coarse (the fast
+    /// preset's default): as auto, but sharp pairs are halved too where at least 16 disparities and
+    /// 25 000 pixels remain; 1: full resolution (docs/performance.md)
+    #[arg(long, value_name = "auto|coarse|N", help_heading = "Matching")]
     pub downscale: Option<Downscale>,
 
     /// SGM: penalty for a one-pixel disparity change along a path, in census bits.

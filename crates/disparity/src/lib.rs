@@ -141,9 +141,25 @@ pub enum Downscale {
     /// half-pixel error is already a 2 px one. Sharp pairs are matched at full resolution.
     #[default]
     Auto,
+    /// As [`Downscale::Auto`], but a pair with detail at every pixel is halved too, once, where
+    /// the halved range keeps at least [`COARSE_MIN_DISPARITIES`] disparities and the halved pair
+    /// at least [`COARSE_MIN_PIXELS`] pixels: [`Preset::Fast`]'s default, which trades the
+    /// finest detail and half the disparity resolution for about an eighth of the work (measured
+    /// on the seven Middlebury scenes, still fewer bad pixels than OpenCV's SGBM_3WAY,
+    /// docs/performance.md). Pairs `Auto` already reduces are reduced alike.
+    Coarse,
     /// Reduce by this factor (1: full resolution), at most [`MAX_DOWNSCALE`].
     By(usize),
 }
+
+/// [`Downscale::Coarse`] halves a sharp pair only where the halved range keeps this many
+/// disparities: below it the reduced match's disparity steps (2 px at full size) are too coarse
+/// for the range (tsukuba's 16 disparities halved to 8: bad2 4.25 → 9.81, above SGBM_3WAY's 6.01).
+pub const COARSE_MIN_DISPARITIES: usize = 16;
+
+/// [`Downscale::Coarse`] halves a sharp pair only where the halved pair keeps this many pixels
+/// (a quarter of [`AUTO_DOWNSCALE_MIN_PIXELS`]; venus, 434 × 383, halves to 41 447).
+pub const COARSE_MIN_PIXELS: usize = 25_000;
 
 /// [`Downscale::Auto`] halves a pair only while the gradient energy per pixel of each halved
 /// view is at least this many times the full view's: 4 for an image with no detail finer than
@@ -162,6 +178,7 @@ impl std::fmt::Display for Downscale {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Downscale::Auto => f.write_str("auto"),
+            Downscale::Coarse => f.write_str("coarse"),
             Downscale::By(n) => write!(f, "{n}"),
         }
     }
@@ -169,16 +186,20 @@ impl std::fmt::Display for Downscale {
 
 impl std::str::FromStr for Downscale {
     type Err = Error;
-    /// `auto`, or a factor from 1 to [`MAX_DOWNSCALE`].
+    /// `auto`, `coarse`, or a factor from 1 to [`MAX_DOWNSCALE`].
     fn from_str(text: &str) -> Result<Self, Error> {
-        if text == "auto" {
-            return Ok(Downscale::Auto);
+        match text {
+            "auto" => return Ok(Downscale::Auto),
+            "coarse" => return Ok(Downscale::Coarse),
+            _ => {}
         }
         match text.parse::<usize>() {
             Ok(f) if (1..=MAX_DOWNSCALE).contains(&f) => Ok(Downscale::By(f)),
             _ => Err(Error::InvalidParameter {
                 name: "downscale",
-                message: format!("{text:?} must be \"auto\" or a factor from 1 to {MAX_DOWNSCALE}"),
+                message: format!(
+                    "{text:?} must be \"auto\", \"coarse\" or a factor from 1 to {MAX_DOWNSCALE}"
+                ),
             }),
         }
     }
@@ -392,8 +413,9 @@ impl Default for SgmParams {
 /// [`SgmParams::preset`]. Measurements in `docs/accuracy.md`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Preset {
-    /// Three path directions (→ ↓ ←) in one top-down pass, like OpenCV's SGBM_3WAY: the
-    /// fastest mode, with O(width × disparities) memory per thread.
+    /// Three path directions (→ ↓ ←) in one top-down pass, like OpenCV's SGBM_3WAY, on the pair
+    /// halved where its range allows ([`Downscale::Coarse`]): the fastest mode, with
+    /// O(width × disparities) memory per thread.
     Fast,
     /// The default parameters ([`SgmParams::default`]).
     #[default]
@@ -463,7 +485,12 @@ impl SgmParams {
     pub fn preset(preset: Preset) -> Self {
         let balanced = SgmParams::default();
         match preset {
-            Preset::Fast => SgmParams { paths: PathCount::Four, single_pass: true, ..balanced },
+            Preset::Fast => SgmParams {
+                paths: PathCount::Four,
+                single_pass: true,
+                downscale: Downscale::Coarse,
+                ..balanced
+            },
             Preset::Balanced => balanced,
             Preset::Accurate => SgmParams { wmf_radius: 5, wmf_sigma_color: 20.0, ..balanced },
         }

@@ -15,7 +15,8 @@ use crate::widen::{replicate, widen_disparity};
 use crate::wta::Selection;
 use crate::{
     check_pair, DisparityMap, DisparityRange, Downscale, Error, GrayImage, Image, MatchingCost, Search,
-    SgmParams, AUTO_DOWNSCALE_MIN_PIXELS, AUTO_DOWNSCALE_SMOOTHNESS,
+    SgmParams, AUTO_DOWNSCALE_MIN_PIXELS, AUTO_DOWNSCALE_SMOOTHNESS, COARSE_MIN_DISPARITIES,
+    COARSE_MIN_PIXELS,
 };
 use rayon::prelude::*;
 
@@ -98,7 +99,7 @@ fn reduction(
             Some((f, l, r))
         }
         Downscale::By(_) => None,
-        Downscale::Auto => {
+        Downscale::Auto | Downscale::Coarse => {
             // Halved while the halved pair keeps the floor and both halved views kept the
             // gradient energy of views with no detail finer than 2 px (each level's energies
             // computed once); but a disparity matched reduced by f carries f times the reduced
@@ -113,10 +114,18 @@ fn reduction(
             };
             let energies =
                 |(l, r): (&GrayImage, &GrayImage)| rayon::join(|| gradient_energy(l), || gradient_energy(r));
-            if params.range.count() < 2 || !halvable((width, height)) {
+            // Coarse: the first halving needs no smoothness, only a range and a size that
+            // survive it.
+            let forced = params.downscale == Downscale::Coarse
+                && params.range.count() / 2 >= COARSE_MIN_DISPARITIES
+                && (width / 2) * (height / 2) >= COARSE_MIN_PIXELS
+                && width / 2 >= params.census.width
+                && height / 2 >= params.census.height;
+            if params.range.count() < 2 || !(forced || halvable((width, height))) {
                 return None;
             }
-            let mut energy = energies((left, right));
+            // The full views' energies are only needed to test the first halving.
+            let mut energy = if forced { (0.0, 0.0) } else { energies((left, right)) };
             // The sensor noise, estimated once and only where the raw energies fail the test (a
             // pair that passes without the noise passes with it discounted).
             let mut noise: Option<f64> = None;
@@ -124,11 +133,17 @@ fn reduction(
             let mut halvings = 0;
             loop {
                 let (l, r) = halved.as_ref().map_or((left, right), |(l, r)| (l, r));
-                if !halvable(l.size()) {
+                let first_forced = forced && halvings == 0;
+                if !first_forced && !halvable(l.size()) {
                     break;
                 }
                 let next = reduce((l, r), 2);
                 let next_energy = energies((&next.0, &next.1));
+                if first_forced {
+                    halvings += 1;
+                    (halved, energy) = (Some(next), next_energy);
+                    continue;
+                }
                 let both_smooth = |variance: f64| {
                     smooth_enough(energy.0, next_energy.0, variance)
                         && smooth_enough(energy.1, next_energy.1, variance)
@@ -841,6 +856,47 @@ mod tests {
         assert_eq!((out.search.downscale, out.disparity.size()), (2, (800, 500)));
         let near = out.disparity.as_slice().iter().filter(|d| (*d - 6.0).abs() <= 1.0).count();
         assert!(near > 800 * 500 * 3 / 4, "{near}");
+    }
+
+    #[test]
+    fn coarse_downscale_halves_sharp_pairs_where_range_and_size_allow() {
+        // A sharp pair Auto keeps at full resolution: Coarse halves it once (and no more: the
+        // halved views are sharp too), where the halved range keeps 16 disparities and the halved
+        // pair 25 000 pixels (340 x 300 halves to 25 500).
+        let coarse = |count: i32| SgmParams {
+            range: DisparityRange::new(0, count).unwrap(),
+            downscale: Downscale::Coarse,
+            ..SgmParams::default()
+        };
+        let sharp = |w: usize, h: usize| GrayImage::from_fn(w, h, |x, y| texture(x as i64, y as i64));
+        let (pair, small) = (sharp(340, 300), sharp(340, 290));
+        let auto = SgmParams { downscale: Downscale::Auto, ..coarse(32) };
+        assert!(reduction(&pair, &pair, &auto).is_none());
+        assert!(matches!(reduction(&pair, &pair, &coarse(32)), Some((2, l, _)) if l.size() == (170, 150)));
+        assert!(reduction(&pair, &pair, &coarse(31)).is_none());
+        assert!(reduction(&small, &small, &coarse(32)).is_none());
+        // Pairs Auto reduces are reduced alike.
+        let smooth = enlarged(800, 500, 0);
+        assert!(
+            matches!(reduction(&smooth, &smooth, &coarse(32)), Some((2, l, _)) if l.size() == (400, 250))
+        );
+        let smoother = enlarged_by(1600, 1000, 0, 8.0);
+        assert!(matches!(reduction(&smoother, &smoother, &coarse(48)), Some((3, _, _))));
+        // End to end: the same map as an explicit halving, and the fast preset's default.
+        let right = GrayImage::from_fn(340, 300, |x, y| texture(x as i64 + 10, y as i64));
+        let out = sgm_detailed(&pair, &right, &coarse(32)).unwrap();
+        let halved =
+            sgm_detailed(&pair, &right, &SgmParams { downscale: Downscale::By(2), ..coarse(32) }).unwrap();
+        assert_eq!((out.search.downscale, out.disparity.size()), (2, (340, 300)));
+        assert!(out
+            .disparity
+            .as_slice()
+            .iter()
+            .zip(halved.disparity.as_slice())
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        let near = out.disparity.as_slice().iter().filter(|d| (*d - 10.0).abs() <= 1.0).count();
+        assert!(near > 340 * 300 / 2, "{near}");
+        assert_eq!(SgmParams::preset(crate::Preset::Fast).downscale, Downscale::Coarse);
     }
 
     /// `image` plus white, roughly Gaussian noise of `sigma` grey levels (16-bit samples: 257 per

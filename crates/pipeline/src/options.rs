@@ -159,7 +159,7 @@ impl MatcherOptions {
                 Err(OptionError::Invalid {
                     option: "downscale",
                     message: format!(
-                        "must be auto or between 1 and {}, got {f}",
+                        "must be auto, coarse or between 1 and {}, got {f}",
                         stereo_disparity::MAX_DOWNSCALE
                     ),
                 })

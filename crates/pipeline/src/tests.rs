@@ -131,7 +131,10 @@ fn matcher_options_resolve_like_the_presets_and_reject_the_other_matchers_option
     let halved = MatcherOptions { downscale: Some(Downscale::By(2)), ..MatcherOptions::default() };
     assert!(matches!(halved.resolve().unwrap(), Matcher::Sgm(p) if p.downscale == Downscale::By(2)));
     let zero = MatcherOptions { downscale: Some(Downscale::By(0)), ..MatcherOptions::default() };
-    assert_eq!(zero.resolve().unwrap_err().to_string(), "downscale must be auto or between 1 and 8, got 0");
+    assert_eq!(
+        zero.resolve().unwrap_err().to_string(),
+        "downscale must be auto, coarse or between 1 and 8, got 0"
+    );
     let bm_halved = MatcherOptions { downscale: Some(Downscale::By(2)), ..bm.clone() };
     assert_eq!(bm_halved.resolve().unwrap_err().to_string(), "downscale applies only to matcher sgm");
     let bm_fill = MatcherOptions { fill: true, ..bm.clone() };

@@ -45,10 +45,12 @@ use crate::input::{Input, View};
 /// - ``paths`` [None: 8, 4 with preset "fast"]: SGM aggregation paths, 4 or 8.
 /// - ``search`` [None: "auto"]: "full", "hierarchical" (coarse to fine) or "auto" (hierarchical
 ///   from 256 disparities, or 128 from 2 megapixels; else full).
-/// - ``downscale`` [None: "auto"]: SGM: match the pair reduced this many times on each side, then
-///   bring the disparities back to full size (about downscale³ less work, coarser disparities);
-///   "auto" halves it while both views hold no detail finer than 2 px, sensor noise discounted
-///   (by 3 where it would halve twice); 1: full resolution.
+/// - ``downscale`` [None: "auto", "coarse" with preset "fast"]: SGM: match the pair reduced this
+///   many times on each side, then bring the disparities back to full size (about downscale³ less
+///   work, coarser disparities); "auto" halves it while both views hold no detail finer than 2 px,
+///   sensor noise discounted (by 3 where it would halve twice); "coarse" as "auto", but sharp
+///   pairs are halved too where at least 16 disparities and 25 000 pixels remain; 1: full
+///   resolution.
 /// - ``p1`` [None: 20], ``p2`` [None: 80]: SGM penalties, in census bits.
 /// - ``uniqueness`` [None: 0 (sgm), 10 (bm)]: uniqueness margin, percent; 0 disables it.
 /// - ``lr_max_diff`` [None: 3 (sgm; 1 with fill), 1 (bm)]: left-right check tolerance, px.
@@ -111,13 +113,14 @@ fn scaled(obj: &Bound<'_, PyAny>, what: &str, unit: u64) -> PyResult<u64> {
         .map_err(|err| value_error(format!("invalid {what} {text:?}: {err}")))
 }
 
-/// ``downscale``: ``"auto"`` or a factor from 1 to 8.
+/// ``downscale``: ``"auto"``, ``"coarse"`` or a factor from 1 to 8.
 fn downscale_option(obj: &Bound<'_, PyAny>) -> PyResult<Downscale> {
     if let Ok(f) = obj.extract::<i64>() {
         let max = stereo_disparity::MAX_DOWNSCALE as i64;
         return int_in("downscale", f, 1, max).map(Downscale::By);
     }
-    let text: String = obj.extract().map_err(|_| value_error("downscale must be \"auto\" or an int"))?;
+    let text: String =
+        obj.extract().map_err(|_| value_error("downscale must be \"auto\", \"coarse\" or an int"))?;
     text.parse::<Downscale>().map_err(|err| value_error(err.to_string()))
 }
 

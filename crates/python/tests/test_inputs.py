@@ -105,6 +105,12 @@ def test_compute_detailed(pair):
     halved = sd.Matcher(max_disparity=32, downscale=2).compute_detailed(left, right)
     assert halved.disparity.shape == left.shape and halved.search["downscale"] == 2
     assert sd.Matcher(max_disparity=32, downscale="auto").compute_detailed(left, right).search["downscale"] == 1
+    # The fast preset halves a sharp pair whose halved range keeps 16 disparities ("coarse");
+    # downscale=1 keeps it at full resolution.
+    big_left, big_right = scene(width=400, height=300, disparity=12)
+    for options, factor in (({"preset": "fast"}, 2), ({"downscale": "coarse"}, 2), ({"preset": "fast", "downscale": 1}, 1)):
+        res = sd.Matcher(max_disparity=32, **options).compute_detailed(big_left, big_right)
+        assert res.search["downscale"] == factor and res.disparity.shape == big_left.shape, options
     for bad in (0, 9, "half", 1.5):
         with pytest.raises(ValueError, match="downscale"):
             sd.Matcher(max_disparity=32, downscale=bad)
