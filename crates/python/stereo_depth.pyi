@@ -31,7 +31,7 @@ class Matcher:
         single_pass: bool = False,
         paths: Optional[Literal[4, 8]] = None,
         search: Optional[Literal["full", "hierarchical", "auto"]] = None,
-        downscale: Union[int, Literal["auto"], None] = None,
+        downscale: Union[int, Literal["auto", "coarse"], None] = None,
         p1: Optional[int] = None,
         p2: Optional[int] = None,
         uniqueness: Optional[int] = None,

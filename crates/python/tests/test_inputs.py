@@ -108,7 +108,8 @@ def test_compute_detailed(pair):
     # The fast preset halves a sharp pair whose halved range keeps 16 disparities ("coarse");
     # downscale=1 keeps it at full resolution.
     big_left, big_right = scene(width=400, height=300, disparity=12)
-    for options, factor in (({"preset": "fast"}, 2), ({"downscale": "coarse"}, 2), ({"preset": "fast", "downscale": 1}, 1)):
+    cases = (({"preset": "fast"}, 2), ({"downscale": "coarse"}, 2), ({"preset": "fast", "downscale": 1}, 1))
+    for options, factor in cases:
         res = sd.Matcher(max_disparity=32, **options).compute_detailed(big_left, big_right)
         assert res.search["downscale"] == factor and res.disparity.shape == big_left.shape, options
     for bad in (0, 9, "half", 1.5):
