@@ -104,7 +104,8 @@ fn end_to_end(c: &mut Criterion) {
     for (w, h, nd, id) in cases() {
         let (left, right) = pair(w, h, nd);
         group.throughput(Throughput::Elements((w * h * nd as usize) as u64));
-        // The two-pass modes and the single-pass ones (`--preset fast` is "3path-1pass").
+        // The two-pass modes and the single-pass ones (`--preset fast` is "3path-1pass", run on
+        // the pair halved by `Downscale::Coarse` where its range allows; these time full resolution).
         for (name, paths, single_pass, search) in [
             ("8path", PathCount::Eight, false, Search::Full),
             ("8path-hierarchical", PathCount::Eight, false, Search::Hierarchical),
