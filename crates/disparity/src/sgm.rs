@@ -106,44 +106,43 @@ fn reduction(
             // match's subpixel error, so the last of two or more halvings becomes a reduction
             // by 1.5 (4 → 3, 8 → 6): at 4 a half-pixel error of the reduced match is already a
             // 2 px error (docs/performance.md).
-            let halvable = |(w, h): (usize, usize)| {
+            let fits = |(w, h): (usize, usize), min_pixels: usize| {
                 let (hw, hh) = (w / 2, h / 2);
-                hw * hh >= AUTO_DOWNSCALE_MIN_PIXELS
-                    && hw >= params.census.width
-                    && hh >= params.census.height
+                hw * hh >= min_pixels && hw >= params.census.width && hh >= params.census.height
             };
+            let halvable = |size| fits(size, AUTO_DOWNSCALE_MIN_PIXELS);
             let energies =
                 |(l, r): (&GrayImage, &GrayImage)| rayon::join(|| gradient_energy(l), || gradient_energy(r));
-            // Coarse: the first halving needs no smoothness, only a range and a size that
-            // survive it.
-            let forced = params.downscale == Downscale::Coarse
-                && params.range.count() / 2 >= COARSE_MIN_DISPARITIES
-                && (width / 2) * (height / 2) >= COARSE_MIN_PIXELS
-                && width / 2 >= params.census.width
-                && height / 2 >= params.census.height;
-            if params.range.count() < 2 || !(forced || halvable((width, height))) {
+            if params.range.count() < 2 {
                 return None;
             }
-            // The full views' energies are only needed to test the first halving.
-            let mut energy = if forced { (0.0, 0.0) } else { energies((left, right)) };
+            let mut halved: Option<(GrayImage, GrayImage)> = None;
+            let mut halvings = 0;
+            // Coarse: the first halving needs no smoothness (so no full-resolution energies),
+            // only a range and a size that survive it.
+            let mut energy = if params.downscale == Downscale::Coarse
+                && params.range.count() / 2 >= COARSE_MIN_DISPARITIES
+                && fits((width, height), COARSE_MIN_PIXELS)
+            {
+                let next = reduce((left, right), 2);
+                let next_energy = energies((&next.0, &next.1));
+                (halved, halvings) = (Some(next), 1);
+                next_energy
+            } else if halvable((width, height)) {
+                energies((left, right))
+            } else {
+                return None;
+            };
             // The sensor noise, estimated once and only where the raw energies fail the test (a
             // pair that passes without the noise passes with it discounted).
             let mut noise: Option<f64> = None;
-            let mut halved: Option<(GrayImage, GrayImage)> = None;
-            let mut halvings = 0;
             loop {
                 let (l, r) = halved.as_ref().map_or((left, right), |(l, r)| (l, r));
-                let first_forced = forced && halvings == 0;
-                if !first_forced && !halvable(l.size()) {
+                if !halvable(l.size()) {
                     break;
                 }
                 let next = reduce((l, r), 2);
                 let next_energy = energies((&next.0, &next.1));
-                if first_forced {
-                    halvings += 1;
-                    (halved, energy) = (Some(next), next_energy);
-                    continue;
-                }
                 let both_smooth = |variance: f64| {
                     smooth_enough(energy.0, next_energy.0, variance)
                         && smooth_enough(energy.1, next_energy.1, variance)
