@@ -239,6 +239,7 @@ mod fused {
         assert!(nd <= 32 * NV && costs.len() >= width * nd && out.len() >= width);
         let lr = sel.lr_max_diff.is_some();
         let min = sel.range.min as i64;
+        let uniqueness_limit = (sel.uniqueness_ratio > 0).then(|| 100 + u64::from(sel.uniqueness_ratio));
         let ones = _mm512_set1_epi16(-1);
         let iota = _mm512_set_epi16(
             31, 30, 29, 28, 27, 26, 25, 24, 23, 22, 21, 20, 19, 18, 17, 16, 15, 14, 13, 12, 11, 10, 9, 8, 7,
@@ -305,20 +306,22 @@ mod fused {
                     break;
                 }
             }
-            // The uniqueness test of [`ambiguous`] on the registers: the cheapest feasible
-            // disparity more than one index away from the winner (none when every sum is
-            // `u16::MAX`, which no sum of path costs reaches).
-            let ambiguous = sel.uniqueness_ratio > 0 && {
-                let mut m = ones;
-                for j in 0..NV {
-                    let near_best = lane_mask(best.saturating_sub(1), best + 2, 32 * j);
-                    m = _mm512_mask_min_epu16(m, feasible[j] & !near_best, m, c[j]);
+            // The uniqueness test of [`ambiguous`] on the registers, without a second
+            // horizontal minimum (it would lengthen each pixel's dependency chain): ambiguous
+            // when a feasible disparity more than one index away from the winner costs `c` with
+            // `c · 100 < best · (100 + ratio)`, i.e. `c <= threshold`. A sum of `u16::MAX` never
+            // counts (no sum of path costs reaches it; the reference's "no second" case).
+            let ambiguous = uniqueness_limit.is_some_and(|factor| {
+                let limit = u64::from(best_cost) * factor;
+                limit > 0 && {
+                    let threshold =
+                        _mm512_set1_epi16(((limit - 1) / 100).min(u64::from(u16::MAX - 1)) as i16);
+                    (0..NV).any(|j| {
+                        let near_best = lane_mask(best.saturating_sub(1), best + 2, 32 * j);
+                        _mm512_mask_cmple_epu16_mask(feasible[j] & !near_best, c[j], threshold) != 0
+                    })
                 }
-                let second = hmin_epu16(m);
-                second != u16::MAX
-                    && u64::from(best_cost) * (100 + u64::from(sel.uniqueness_ratio))
-                        > u64::from(second) * 100
-            };
+            });
             let c = &costs[x * nd..(x + 1) * nd];
             if ambiguous {
                 out[x] = tagged_nan(PixelStatus::Ambiguous);
@@ -535,6 +538,42 @@ mod tests {
                 for (x, (a, b)) in got.iter().zip(&expected).enumerate() {
                     proptest::prop_assert!(a.to_bits() == b.to_bits(), "{} pixel {}: {} vs {}", name, x, a, b);
                 }
+            }
+        }
+    }
+
+    /// The uniqueness test at its boundary, which random costs seldom hit: a second-best sum of
+    /// exactly `best · (100 + ratio) / 100` keeps the pixel, one less rejects it, in every kernel.
+    #[test]
+    fn uniqueness_boundary_matches_the_reference() {
+        let (width, nd) = (40, 24);
+        for (second, ambiguous) in [(107u16, false), (106, true)] {
+            let costs: Vec<u16> = (0..width * nd)
+                .map(|i| match i % nd {
+                    9 => 100,
+                    10 => 101,
+                    17 => second,
+                    _ => 500,
+                })
+                .collect();
+            let sel = Selection {
+                range: DisparityRange { min: 0, max: nd as i32 },
+                uniqueness_ratio: 7,
+                lr_max_diff: None,
+                lr_left_neighbour: false,
+                subpixel: Subpixel::None,
+            };
+            let mut expected = vec![0f32; width];
+            select_row_reference(&costs, width, nd, sel, &mut vec![0; width], &mut expected);
+            assert_eq!(expected[30].is_nan(), ambiguous);
+            let mut scratch = WtaScratch::new(width);
+            let mut got = vec![0f32; width];
+            select_row(&costs, width, nd, sel, &mut scratch, &mut got);
+            let mut generic = vec![0f32; width];
+            select_row_generic(&costs, width, nd, sel, &mut scratch, &mut generic, Level::Scalar);
+            for ((a, b), c) in got.iter().zip(&generic).zip(&expected) {
+                assert_eq!(a.to_bits(), c.to_bits());
+                assert_eq!(b.to_bits(), c.to_bits());
             }
         }
     }
