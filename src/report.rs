@@ -215,6 +215,9 @@ pub enum MatcherReport {
         mean_disparities_searched: f32,
         /// The factor the pair was reduced by before matching (`--downscale`; 1: full resolution).
         downscale: usize,
+        /// Whether the rows alone were halved before matching (`--downscale coarse` on a range
+        /// too short to halve).
+        rows_halved: bool,
     },
     Bm {
         min_disparity: i32,
@@ -370,6 +373,7 @@ impl MatcherReport {
                 search_levels: search.map_or(0, |s| s.levels),
                 mean_disparities_searched: search.map_or(p.range.count() as f32, |s| s.mean_range),
                 downscale: search.map_or(1, |s| s.downscale),
+                rows_halved: search.is_some_and(|s| s.rows_halved),
             },
             Matcher::Bm(p) => MatcherReport::Bm {
                 min_disparity: p.range.min,
@@ -519,12 +523,14 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
         };
         writeln!(out, "cost          {cost}, {penalties}")?;
     }
-    if let MatcherReport::Sgm { downscale, .. } = &stats.matcher {
+    if let MatcherReport::Sgm { downscale, rows_halved, .. } = &stats.matcher {
         if *downscale > 1 {
             writeln!(
                 out,
                 "downscale     matched at 1/{downscale} of the size, disparities {downscale} times coarser"
             )?;
+        } else if *rows_halved {
+            writeln!(out, "downscale     matched with the rows halved, disparities at full resolution")?;
         }
     }
     if let MatcherReport::Sgm {

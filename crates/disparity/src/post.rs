@@ -42,6 +42,9 @@ pub struct SearchReport {
     /// The factor the pair was reduced by before matching ([`crate::SgmParams::downscale`]; 1:
     /// matched at full resolution).
     pub downscale: usize,
+    /// Whether the rows alone were halved before matching (with `downscale` 1:
+    /// [`crate::Downscale::Coarse`] on a range too short to halve).
+    pub rows_halved: bool,
 }
 
 /// What [`crate::sgm_detailed`] measured of the pair before matching (a census-only match at a

@@ -15,34 +15,41 @@ pub(crate) fn reduced_range(range: crate::DisparityRange, factor: usize) -> crat
 }
 
 /// The `factor × factor` box average of `image` (partial blocks at the right and bottom are
-/// dropped), 8-bit samples stored ×257 when the input is 8-bit. Rows in parallel; each output
-/// row sums its input rows column by column first, so the inner loops have no divisions.
+/// dropped), 8-bit samples stored ×257 when the input is 8-bit.
 pub(crate) fn downsample(image: &GrayImage, factor: usize) -> GrayImage {
+    downsample_by(image, factor, factor)
+}
+
+/// The `columns × rows` box average of `image`, as [`downsample`] (`columns` 1 and `rows` 2 halves
+/// the rows alone). Rows in parallel; each output row sums its input rows column by column
+/// first, so the inner loops have no divisions.
+pub(crate) fn downsample_by(image: &GrayImage, columns: usize, rows: usize) -> GrayImage {
     let (w, h) = image.size();
-    let factor = factor.max(1);
-    let (cw, ch) = (w / factor, h / factor);
+    let (columns, rows) = (columns.max(1), rows.max(1));
+    let (cw, ch) = (w / columns, h / rows);
     let byte_scaled = crate::census::is_byte_scaled(image);
     let mut data = vec![0u16; cw * ch];
-    // Column sums in u32: a factor up to 256 sums at most 2^16 samples of 16 bits per block.
-    assert!(factor <= 256, "downsampling factor {factor}");
+    // Column sums in u32: a block of up to 2^16 samples of 16 bits.
+    assert!(columns * rows <= 1 << 16, "downsampling by {columns} x {rows}");
     data.par_chunks_mut(cw.max(1)).enumerate().for_each_init(
-        || vec![0u32; cw * factor],
-        |columns, (y, out)| {
-            columns.fill(0);
-            for yy in y * factor..(y + 1) * factor {
-                for (c, &v) in columns.iter_mut().zip(image.row(yy)) {
+        || vec![0u32; cw * columns],
+        |sums, (y, out)| {
+            sums.fill(0);
+            for yy in y * rows..(y + 1) * rows {
+                for (c, &v) in sums.iter_mut().zip(image.row(yy)) {
                     *c += u32::from(v);
                 }
             }
             // The usual factors with the block size known to the compiler (unrolled sums, a
             // shift for the mean).
-            match factor {
-                2 => block_means::<2>(columns, out, byte_scaled),
-                3 => block_means::<3>(columns, out, byte_scaled),
-                4 => block_means::<4>(columns, out, byte_scaled),
+            match (columns, rows) {
+                (2, 2) => block_means::<2, 4>(sums, out, byte_scaled),
+                (3, 3) => block_means::<3, 9>(sums, out, byte_scaled),
+                (4, 4) => block_means::<4, 16>(sums, out, byte_scaled),
+                (1, 2) => block_means::<1, 2>(sums, out, byte_scaled),
                 _ => {
-                    for (o, block) in out.iter_mut().zip(columns.chunks_exact(factor)) {
-                        *o = block_mean(block.iter().sum(), factor * factor, byte_scaled);
+                    for (o, block) in out.iter_mut().zip(sums.chunks_exact(columns)) {
+                        *o = block_mean(block.iter().sum(), columns * rows, byte_scaled);
                     }
                 }
             }
@@ -51,12 +58,13 @@ pub(crate) fn downsample(image: &GrayImage, factor: usize) -> GrayImage {
     GrayImage::from_vec(cw, ch, data).expect("cw * ch samples")
 }
 
-/// [`downsample`]'s output row from its column sums, `F` columns per output sample.
+/// [`downsample_by`]'s output row from its column sums, `F` columns per output sample and `N`
+/// samples per block.
 #[inline(always)]
-fn block_means<const F: usize>(columns: &[u32], out: &mut [u16], byte_scaled: bool) {
+fn block_means<const F: usize, const N: usize>(columns: &[u32], out: &mut [u16], byte_scaled: bool) {
     for (o, block) in out.iter_mut().zip(columns.chunks_exact(F)) {
         let block: &[u32; F] = block.try_into().expect("F columns");
-        *o = block_mean(block.iter().sum(), F * F, byte_scaled);
+        *o = block_mean(block.iter().sum(), N, byte_scaled);
     }
 }
 
@@ -481,23 +489,25 @@ mod tests {
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
 
-        /// Every factor, 16-bit and 8-bit (×257) samples: the rounded mean of each whole block,
-        /// summed plainly.
+        /// Every factor, square or not (the rows alone halved included), 16-bit and 8-bit (×257)
+        /// samples: the rounded mean of each whole block, summed plainly.
         #[test]
-        fn downsample_is_the_rounded_block_mean(w in 1usize..40, h in 1usize..30, factor in 1usize..7, bytes in proptest::prelude::any::<bool>(), seed in proptest::prelude::any::<u64>()) {
+        fn downsample_is_the_rounded_block_mean(w in 1usize..40, h in 1usize..30, factor in 1usize..7, rows_only in proptest::prelude::any::<bool>(), bytes in proptest::prelude::any::<bool>(), seed in proptest::prelude::any::<u64>()) {
             let mut s = seed | 1;
             let mut next = move || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s };
             let image = GrayImage::from_fn(w, h, |_, _| {
                 let v = next() as u16;
                 if bytes { (v & 0xff) * 257 } else { v }
             });
-            let small = downsample(&image, factor);
-            let n = (factor * factor) as u64;
+            let (fx, fy) = if rows_only { (1, factor) } else { (factor, factor) };
+            let small = if rows_only { downsample_by(&image, 1, factor) } else { downsample(&image, factor) };
+            proptest::prop_assert_eq!(small.size(), (w / fx, h / fy));
+            let n = (fx * fy) as u64;
             // (A small random 16-bit image can be ×257 throughout by chance.)
             let bytes = image.as_slice().iter().all(|&v| v >> 8 == v & 0xff);
-            for (y, x) in (0..h / factor).flat_map(|y| (0..w / factor).map(move |x| (y, x))) {
-                let sum: u64 = (0..factor * factor)
-                    .map(|i| u64::from(image.get(x * factor + i % factor, y * factor + i / factor)))
+            for (y, x) in (0..h / fy).flat_map(|y| (0..w / fx).map(move |x| (y, x))) {
+                let sum: u64 = (0..fx * fy)
+                    .map(|i| u64::from(image.get(x * fx + i % fx, y * fy + i / fx)))
                     .sum();
                 let expected = if bytes { (sum / 257 + n / 2) / n * 257 } else { (sum + n / 2) / n };
                 proptest::prop_assert_eq!(u64::from(small.get(x, y)), expected);

@@ -34,8 +34,8 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
 pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<SgmOutput, Error> {
     check_pair(left, right)?;
     params.validate()?;
-    if let Some((f, small_left, small_right)) = reduction(left, right, params) {
-        return match_downscaled(left, small_left, small_right, f, params);
+    if let Some((factors, small_left, small_right)) = reduction(left, right, params) {
+        return match_downscaled(left, small_left, small_right, factors, params);
     }
     let (width, height) = left.size();
     if width < params.census.width || height < params.census.height {
@@ -82,13 +82,13 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     Ok(output)
 }
 
-/// The reduction [`SgmParams::downscale`] asks for on this pair, if any: the factor and both
-/// views reduced by it.
+/// The reduction [`SgmParams::downscale`] asks for on this pair, if any: the factors of the
+/// columns and of the rows, and both views reduced by them.
 fn reduction(
     left: &GrayImage,
     right: &GrayImage,
     params: &SgmParams,
-) -> Option<(usize, GrayImage, GrayImage)> {
+) -> Option<((usize, usize), GrayImage, GrayImage)> {
     let (width, height) = left.size();
     let reduce = |(l, r): (&GrayImage, &GrayImage), f: usize| {
         rayon::join(|| crate::radiometric::downsample(l, f), || crate::radiometric::downsample(r, f))
@@ -96,7 +96,7 @@ fn reduction(
     match params.downscale {
         Downscale::By(f) if f > 1 => {
             let (l, r) = reduce((left, right), f);
-            Some((f, l, r))
+            Some(((f, f), l, r))
         }
         Downscale::By(_) => None,
         Downscale::Auto | Downscale::Coarse => {
@@ -116,11 +116,25 @@ fn reduction(
             if params.range.count() < 2 {
                 return None;
             }
+            let coarse = params.downscale == Downscale::Coarse;
+            // Coarse where the range is too short to halve: the rows alone are halved (the
+            // disparities keep their resolution), if `auto` does not reduce the pair anyway.
+            let halve_rows = || {
+                let short_range = params.range.count() / 2 < COARSE_MIN_DISPARITIES;
+                let rows_fit = height / 2 * width >= COARSE_MIN_PIXELS && height / 2 >= params.census.height;
+                (coarse && short_range && rows_fit).then(|| {
+                    let (l, r) = rayon::join(
+                        || crate::radiometric::downsample_by(left, 1, 2),
+                        || crate::radiometric::downsample_by(right, 1, 2),
+                    );
+                    ((1, 2), l, r)
+                })
+            };
             let mut halved: Option<(GrayImage, GrayImage)> = None;
             let mut halvings = 0;
             // Coarse: the first halving needs no smoothness (so no full-resolution energies),
             // only a range and a size that survive it.
-            let mut energy = if params.downscale == Downscale::Coarse
+            let mut energy = if coarse
                 && params.range.count() / 2 >= COARSE_MIN_DISPARITIES
                 && fits((width, height), COARSE_MIN_PIXELS)
             {
@@ -131,7 +145,7 @@ fn reduction(
             } else if halvable((width, height)) {
                 energies((left, right))
             } else {
-                return None;
+                return halve_rows();
             };
             // The sensor noise, estimated once and only where the raw energies fail the test (a
             // pair that passes without the noise passes with it discounted).
@@ -163,13 +177,16 @@ fn reduction(
                 halvings += 1;
                 (halved, energy) = (Some(next), next_energy);
             }
+            if halvings == 0 {
+                return halve_rows();
+            }
             if halvings < 2 {
-                return halved.map(|(l, r)| (2, l, r));
+                return halved.map(|(l, r)| ((2, 2), l, r));
             }
             drop(halved);
             let f = 3 << (halvings - 2);
             let (l, r) = reduce((left, right), f);
-            Some((f, l, r))
+            Some(((f, f), l, r))
         }
     }
 }
@@ -269,17 +286,18 @@ crate::kernels::multiversion! {
     fn row_gradient_energy(row: &[u16], below: &[u16]) -> u64 => row_gradient_energy_generic;
 }
 
-/// [`SgmParams::downscale`]: the pair reduced by the factor `f` (box filter, as the coarse
-/// levels) matched with the range divided by `f` (rounded outwards) and every other parameter as
-/// given ([`Downscale::Auto`] may halve it again), then brought back: each reduced pixel covers
-/// `f × f` pixels (the last row and column repeat where the size is not a multiple of `f`) with
-/// its disparity, status and confidence, the disparity times `f`. A disparity that lands outside
-/// the range asked for is rejected ([`crate::PixelStatus::RangeEnd`]).
+/// [`SgmParams::downscale`]: the pair reduced by the factors `(f, rows)` of its columns and rows
+/// (box filter, as the coarse levels; `rows` is `f`, or 2 with `f` 1 where only the rows were
+/// halved) matched with the range divided by `f` (rounded outwards) and every other parameter
+/// as given, then brought back: each reduced pixel covers `f × rows` pixels (the last row and
+/// column repeat where the size is not a multiple) with its disparity, status and confidence,
+/// the disparity times `f`. A disparity that lands outside the range asked for is rejected
+/// ([`crate::PixelStatus::RangeEnd`]).
 fn match_downscaled(
     left: &GrayImage,
     small_left: GrayImage,
     small_right: GrayImage,
-    f: usize,
+    (f, rows): (usize, usize),
     params: &SgmParams,
 ) -> Result<SgmOutput, Error> {
     let (width, height) = left.size();
@@ -321,16 +339,17 @@ fn match_downscaled(
         }
     });
     let (small_disparity, small_status) = (small.disparity.as_slice(), small.status.as_slice());
-    let disparity = widen_disparity(small_disparity, small_width, f, width, height);
-    let status = replicate(small_status, small_width, f, width, height);
+    let factors = (f, rows);
+    let disparity = widen_disparity(small_disparity, small_width, factors, width, height);
+    let status = replicate(small_status, small_width, factors, width, height);
     let confidence =
-        small.confidence.as_ref().map(|c| replicate(c.as_slice(), small_width, f, width, height));
+        small.confidence.as_ref().map(|c| replicate(c.as_slice(), small_width, factors, width, height));
     Ok(SgmOutput {
         disparity,
         status,
         confidence,
         adaptation: small.adaptation,
-        search: SearchReport { downscale: f * small.search.downscale, ..small.search },
+        search: SearchReport { downscale: f, rows_halved: rows != f, ..small.search },
     })
 }
 
@@ -607,6 +626,7 @@ fn match_census(
         levels: 0,
         mean_range: params.range.count() as f32,
         downscale: 1,
+        rows_halved: false,
     };
     (disparity, report)
 }
@@ -666,6 +686,7 @@ fn match_coarse_to_fine(
         levels: coarse.search.levels + 1,
         mean_range: bands.mean_searched(range),
         downscale: 1,
+        rows_halved: false,
     };
     Some((disparity, report))
 }
@@ -787,7 +808,7 @@ mod tests {
         assert_eq!(reduced.disparity.size(), (101, 61));
         assert_eq!(reduced.search.downscale, 2);
         let doubled: Vec<f32> = small.disparity.as_slice().iter().map(|&d| d * 2.0).collect();
-        let widened = crate::widen::widen_disparity_reference(&doubled, 50, 2, 101, 61);
+        let widened = crate::widen::widen_disparity_reference(&doubled, 50, (2, 2), 101, 61);
         let mut right_px = 0;
         for y in 0..61 {
             for x in 0..101 {
@@ -841,7 +862,9 @@ mod tests {
         let smooth = enlarged(800, 500, 0);
         let energy = gradient_energy(&crate::radiometric::downsample(&smooth, 2)) / gradient_energy(&smooth);
         assert!(energy > AUTO_DOWNSCALE_SMOOTHNESS, "{energy}");
-        assert!(matches!(reduction(&smooth, &smooth, &params), Some((2, l, _)) if l.size() == (400, 250)));
+        assert!(
+            matches!(reduction(&smooth, &smooth, &params), Some(((2, 2), l, _)) if l.size() == (400, 250))
+        );
         // One sharp view keeps the full resolution; so does a pair that would halve below the floor
         // (300 x 250 is 75 000 pixels); an explicit factor is obeyed.
         assert!(reduction(&smooth, &sharp, &params).is_none());
@@ -871,16 +894,23 @@ mod tests {
         let (pair, small) = (sharp(340, 300), sharp(340, 290));
         let auto = SgmParams { downscale: Downscale::Auto, ..coarse(32) };
         assert!(reduction(&pair, &pair, &auto).is_none());
-        assert!(matches!(reduction(&pair, &pair, &coarse(32)), Some((2, l, _)) if l.size() == (170, 150)));
-        assert!(reduction(&pair, &pair, &coarse(31)).is_none());
+        assert!(
+            matches!(reduction(&pair, &pair, &coarse(32)), Some(((2, 2), l, _)) if l.size() == (170, 150))
+        );
         assert!(reduction(&small, &small, &coarse(32)).is_none());
+        // A range too short to halve: the rows alone are halved, where 25 000 pixels remain.
+        assert!(
+            matches!(reduction(&pair, &pair, &coarse(31)), Some(((1, 2), l, _)) if l.size() == (340, 150))
+        );
+        assert!(reduction(&sharp(160, 300), &sharp(160, 300), &coarse(31)).is_none());
+        assert!(reduction(&pair, &pair, &SgmParams { downscale: Downscale::Auto, ..coarse(16) }).is_none());
         // Pairs Auto reduces are reduced alike.
         let smooth = enlarged(800, 500, 0);
         assert!(
-            matches!(reduction(&smooth, &smooth, &coarse(32)), Some((2, l, _)) if l.size() == (400, 250))
+            matches!(reduction(&smooth, &smooth, &coarse(32)), Some(((2, 2), l, _)) if l.size() == (400, 250))
         );
         let smoother = enlarged_by(1600, 1000, 0, 8.0);
-        assert!(matches!(reduction(&smoother, &smoother, &coarse(48)), Some((3, _, _))));
+        assert!(matches!(reduction(&smoother, &smoother, &coarse(48)), Some(((3, 3), _, _))));
         // End to end: the same map as an explicit halving, and the fast preset's default.
         let right = GrayImage::from_fn(340, 300, |x, y| texture(x as i64 + 10, y as i64));
         let out = sgm_detailed(&pair, &right, &coarse(32)).unwrap();
@@ -895,6 +925,16 @@ mod tests {
             .all(|(a, b)| a.to_bits() == b.to_bits()));
         let near = out.disparity.as_slice().iter().filter(|d| (*d - 10.0).abs() <= 1.0).count();
         assert!(near > 340 * 300 / 2, "{near}");
+        // Rows halved: full size, the disparities at full resolution (10 exactly, as the pair's
+        // shift is whole), reported.
+        let rows = sgm_detailed(&pair, &right, &coarse(16)).unwrap();
+        assert_eq!(
+            (rows.search.downscale, rows.search.rows_halved, rows.disparity.size()),
+            (1, true, (340, 300))
+        );
+        let exact = rows.disparity.as_slice().iter().filter(|d| (*d - 10.0).abs() <= 0.25).count();
+        assert!(exact > 340 * 300 / 2, "{exact}");
+        assert!(!out.search.rows_halved);
         assert_eq!(SgmParams::preset(crate::Preset::Fast).downscale, Downscale::Coarse);
     }
 
@@ -934,11 +974,11 @@ mod tests {
         // clean pair does. A sharp pair with the same noise stays at full resolution.
         let params = SgmParams { range: DisparityRange::new(0, 32).unwrap(), ..SgmParams::default() };
         let (left, right) = (soft(800, 500, 0), soft(800, 500, 6));
-        assert!(matches!(reduction(&left, &right, &params), Some((2, _, _))));
+        assert!(matches!(reduction(&left, &right, &params), Some(((2, 2), _, _))));
         let (left, right) = (noisy(&left, 6.0, 1), noisy(&right, 6.0, 2));
         let halved = crate::radiometric::downsample(&left, 2);
         assert!(gradient_energy(&halved) < AUTO_DOWNSCALE_SMOOTHNESS * gradient_energy(&left));
-        assert!(matches!(reduction(&left, &right, &params), Some((2, l, _)) if l.size() == (400, 250)));
+        assert!(matches!(reduction(&left, &right, &params), Some(((2, 2), l, _)) if l.size() == (400, 250)));
         let sharp = GrayImage::from_fn(800, 500, |x, y| 24_000 + texture(x as i64, y as i64) / 4);
         assert!(reduction(&noisy(&sharp, 6.0, 1), &noisy(&sharp, 6.0, 2), &params).is_none());
     }
@@ -953,7 +993,7 @@ mod tests {
         let quarter = crate::radiometric::downsample(&crate::radiometric::downsample(&left, 2), 2);
         let energy = gradient_energy(&quarter) / gradient_energy(&crate::radiometric::downsample(&left, 2));
         assert!(energy > AUTO_DOWNSCALE_SMOOTHNESS, "{energy}");
-        assert!(matches!(reduction(&left, &left, &params), Some((3, l, _)) if l.size() == (533, 333)));
+        assert!(matches!(reduction(&left, &left, &params), Some(((3, 3), l, _)) if l.size() == (533, 333)));
         let right = enlarged_by(1600, 1000, 12, 8.0);
         let out = sgm_detailed(&left, &right, &params).unwrap();
         assert_eq!((out.search.downscale, out.disparity.size()), (3, (1600, 1000)));

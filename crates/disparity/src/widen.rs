@@ -52,23 +52,25 @@ fn smaller(a: f32, b: f32) -> f32 {
     }
 }
 
-/// The reduced disparities `small` (already times `f`, `small_width` wide) brought to `width ×
-/// height`. A pixel whose (up to) four nearest reduced pixels are all valid and within `f` of
-/// each other (one reduced pixel: the same surface) takes their bilinear interpolation at its
-/// position ([`intervals`]; along the rows first, then down the columns); any other pixel takes
-/// the value, or the tagged hole, of the reduced pixel it lies in, as [`replicate`] does, so depth
-/// edges stay sharp and no hole grows or shrinks (docs/performance.md).
+/// The reduced disparities `small` (already times the columns' factor `f.0`, `small_width` wide;
+/// rows reduced by `f.1`) brought to `width × height`. A pixel whose (up to) four nearest reduced
+/// pixels are all valid and within `f.0` of each other (one reduced pixel: the same surface)
+/// takes their bilinear interpolation at its position ([`intervals`]; along the rows first, then
+/// down the columns; with `f.0` 1 a column's own pixels only); any other pixel takes the value,
+/// or the tagged hole, of the reduced pixel it lies in, as [`replicate`] does, so depth edges
+/// stay sharp and no hole grows or shrinks (docs/performance.md).
 pub(crate) fn widen_disparity(
     small: &[f32],
     small_width: usize,
-    f: usize,
+    (f, fy): (usize, usize),
     width: usize,
     height: usize,
 ) -> Image<f32> {
     let small_height = small.len() / small_width;
-    // The reduced pair is the full one divided by f, rounded down (`radiometric::downsample`).
-    assert!(width >= f * small_width && height >= f * small_height);
-    let rows = intervals(height, small_height, f);
+    // The reduced pair is the full one divided by the factors, rounded down
+    // (`radiometric::downsample_by`).
+    assert!(width >= f * small_width && height >= fy * small_height);
+    let rows = intervals(height, small_height, fy);
     let same_surface = f as f32;
     let mut out = vec![0f32; width * height];
     // Band b writes the full rows whose interval starts in reduced rows b·BAND..(b + 1)·BAND.
@@ -107,7 +109,7 @@ pub(crate) fn widen_disparity(
             let slot_of = |k: usize| if cache[0].0 == k { &cache[0].1 } else { &cache[1].1 };
             let (a, c) = (slot_of(above), slot_of(below));
             // The reduced pixel a full pixel lies in is one of the two.
-            let own = &slot_of((y / f).min(n - 1)).nearest;
+            let own = &slot_of((y / fy).min(n - 1)).nearest;
             blend_rows(a, c, own, t, same_surface, out);
         }
     });
@@ -143,6 +145,7 @@ crate::kernels::multiversion! {
 #[inline(always)]
 fn fill_row_generic(widened: &mut Widened, row: &[f32], fractions: &[f32], _level: crate::kernels::Level) {
     match fractions.len() {
+        1 => widened.fill_own(row),
         2 => widened.fill_by::<2>(row, fractions),
         3 => widened.fill_by::<3>(row, fractions),
         4 => widened.fill_by::<4>(row, fractions),
@@ -173,6 +176,15 @@ impl Widened {
             low: vec![0.0; width],
             high: vec![0.0; width],
             nearest: vec![0.0; width],
+        }
+    }
+
+    /// [`fill_row`] for columns that were not reduced: each pixel is its own reduced pixel.
+    fn fill_own(&mut self, row: &[f32]) {
+        self.value.copy_from_slice(row);
+        self.nearest.copy_from_slice(row);
+        for ((low, high), &v) in self.low.iter_mut().zip(&mut self.high).zip(row) {
+            (*low, *high) = if v.is_finite() { (v, v) } else { (f32::NEG_INFINITY, f32::INFINITY) };
         }
     }
 
@@ -223,23 +235,24 @@ impl Widened {
     }
 }
 
-/// `small` (`small_width` wide) brought to `width × height`: each pixel covers `f × f` pixels,
-/// the last row and column repeat where the size is not a multiple of `f`. Each reduced row is
-/// widened once into the first of its `f` rows, which the others copy.
+/// `small` (`small_width` wide) brought to `width × height`: each pixel covers `f.0 × f.1`
+/// pixels, the last row and column repeat where the size is not a multiple of the factors. Each
+/// reduced row is widened once into the first of its `f.1` rows, which the others copy.
 pub(crate) fn replicate<T: Copy + Send + Sync>(
     small: &[T],
     small_width: usize,
-    f: usize,
+    (f, fy): (usize, usize),
     width: usize,
     height: usize,
 ) -> Image<T> {
     let small_height = small.len() / small_width;
     let widen = |y: usize, row: &mut [T]| {
-        let at = (y / f).min(small_height - 1) * small_width;
+        let at = (y / fy).min(small_height - 1) * small_width;
         let small_row = &small[at..at + small_width];
         // Whole blocks of `f` (a loop the compiler unrolls for the usual factors), then the tail.
         let blocks = (small_width - 1) * f;
         match f {
+            1 => row[..blocks].copy_from_slice(&small_row[..small_width - 1]),
             2 => widen_by::<T, 2>(small_row, &mut row[..blocks]),
             3 => widen_by::<T, 3>(small_row, &mut row[..blocks]),
             4 => widen_by::<T, 4>(small_row, &mut row[..blocks]),
@@ -252,11 +265,11 @@ pub(crate) fn replicate<T: Copy + Send + Sync>(
         row[blocks..].fill(small_row[small_width - 1]);
     };
     let mut out = vec![small[0]; width * height];
-    let whole = height / f * f;
+    let whole = height / fy * fy;
     let (blocks, tail) = out.split_at_mut(whole * width);
-    blocks.par_chunks_exact_mut(width * f).enumerate().for_each(|(block, rows)| {
+    blocks.par_chunks_exact_mut(width * fy).enumerate().for_each(|(block, rows)| {
         let (first, rest) = rows.split_at_mut(width);
-        widen(block * f, first);
+        widen(block * fy, first);
         for row in rest.chunks_exact_mut(width) {
             row.copy_from_slice(first);
         }
@@ -281,17 +294,19 @@ fn widen_by<T: Copy, const F: usize>(small: &[T], out: &mut [T]) {
 pub(crate) fn widen_disparity_reference(
     small: &[f32],
     small_width: usize,
-    f: usize,
+    (f, fy): (usize, usize),
     width: usize,
     height: usize,
 ) -> Image<f32> {
     let small_height = small.len() / small_width;
-    let (columns, rows) = (intervals(width, small_width, f), intervals(height, small_height, f));
+    let (columns, rows) = (intervals(width, small_width, f), intervals(height, small_height, fy));
     let at = |x: usize, y: usize| small[y * small_width + x];
     let between = |k: u32, n: usize| ((k as usize).saturating_sub(1).min(n - 1), (k as usize).min(n - 1));
     Image::from_fn(width, height, |x, y| {
         let ((kx, tx), (ky, ty)) = (columns[x], rows[y]);
-        let ((x0, x1), (y0, y1)) = (between(kx, small_width), between(ky, small_height));
+        // Columns not reduced: a pixel is its own reduced pixel, no neighbour's.
+        let (x0, x1) = if f == 1 { (x, x) } else { between(kx, small_width) };
+        let (y0, y1) = between(ky, small_height);
         let corners = [at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1)];
         let valid = corners.iter().all(|v| v.is_finite());
         let spread = corners.iter().copied().fold(f32::MIN, f32::max)
@@ -301,7 +316,7 @@ pub(crate) fn widen_disparity_reference(
             let (top, bottom) = (a + tx * (b - a), c + tx * (e - c));
             top + ty * (bottom - top)
         } else {
-            at((x / f).min(small_width - 1), (y / f).min(small_height - 1))
+            at((x / f).min(small_width - 1), (y / fy).min(small_height - 1))
         }
     })
 }
@@ -327,7 +342,7 @@ mod tests {
             let plane = |x: f64, y: f64| 20.0 + 0.1 * x - 0.05 * y;
             let (sw, sh) = (23, 17);
             let (w, h) = (f * sw + f - 1, f * sh);
-            let out = widen_disparity(&sampled(plane, sw, sh, f), sw, f, w, h);
+            let out = widen_disparity(&sampled(plane, sw, sh, f), sw, (f, f), w, h);
             // Between the first and the last centres the interpolation is the plane itself; the
             // replicated map was off by up to a step of 0.1·(f − 1)/2 px along x.
             let centre = |i: usize| f * i + (f - 1) / 2;
@@ -341,6 +356,35 @@ mod tests {
     }
 
     #[test]
+    fn halved_rows_come_back_as_the_plane_with_columns_untouched() {
+        // Rows halved, columns not: between the first and the last row centres a slanted plane
+        // comes back exactly; each column keeps its own disparities, and a hole stays one column
+        // wide, repeated down the two rows it covers.
+        let plane = |x: f64, y: f64| 20.0 + 0.1 * x - 0.05 * y;
+        let (sw, sh) = (23, 17);
+        let centre = |k: usize| 2.0 * k as f64 + 0.5;
+        let mut small: Vec<f32> =
+            (0..sw * sh).map(|p| plane((p % sw) as f64, centre(p / sw)) as f32).collect();
+        let hole = f32::from_bits(0x7fc0_0005);
+        small[5 * sw + 7] = hole;
+        let (w, h) = (sw, 2 * sh + 1);
+        let out = widen_disparity(&small, sw, (1, 2), w, h);
+        let repeated = replicate(&small, sw, (1, 2), w, h);
+        for y in 1..2 * sh - 1 {
+            for x in 0..w {
+                let v = out.get(x, y);
+                if repeated.get(x, y).is_nan() {
+                    assert_eq!(v.to_bits(), hole.to_bits(), "({x},{y})");
+                } else if !(x == 7 && (9..=12).contains(&y)) {
+                    let err = (f64::from(v) - plane(x as f64, y as f64)).abs();
+                    assert!(err < 1e-4, "({x},{y}) off by {err}");
+                }
+            }
+        }
+        assert!(out.get(7, 10).is_nan() && out.get(7, 11).is_nan() && !out.get(6, 10).is_nan());
+    }
+
+    #[test]
     fn depth_edges_and_holes_are_repeated_not_blended() {
         // A foreground at 40 px beside a background at 10 (an edge far wider than f), and a tagged
         // hole: no pixel takes a value between the two surfaces, and the holes are exactly the
@@ -351,8 +395,8 @@ mod tests {
         let mut small: Vec<f32> = (0..sw * sh).map(|p| if p % sw < 6 { 10.0 } else { 40.0 }).collect();
         small[4 * sw + 2] = hole;
         let (w, h) = (sw * f + 1, sh * f + 2);
-        let out = widen_disparity(&small, sw, f, w, h);
-        let repeated = replicate(&small, sw, f, w, h);
+        let out = widen_disparity(&small, sw, (f, f), w, h);
+        let repeated = replicate(&small, sw, (f, f), w, h);
         for (&v, &r) in out.as_slice().iter().zip(repeated.as_slice()) {
             assert_eq!(v.is_nan(), r.is_nan());
             if v.is_nan() {
@@ -374,17 +418,21 @@ mod tests {
     proptest! {
         #[test]
         fn widen_disparity_matches_the_reference(
-            (sw, sh, f, extra_w, extra_h, small) in (1usize..14, 1usize..10, 2usize..6).prop_flat_map(|(sw, sh, f)| {
-                (Just(sw), Just(sh), Just(f), 0..f, 0..f, proptest::collection::vec(
-                    // Smooth runs (neighbours within f) and jumps, to exercise both branches.
-                    prop_oneof![3 => value(), 1 => (0.0f32..2.0).prop_map(|v| 30.0 + v)], sw * sh))
-            }),
+            (sw, sh, f, rows_only, extra_w, extra_h, small) in (1usize..14, 1usize..10, 2usize..6, any::<bool>())
+                .prop_flat_map(|(sw, sh, f, rows_only)| {
+                    let fx = if rows_only { 1 } else { f };
+                    (Just(sw), Just(sh), Just(f), Just(rows_only), 0..fx, 0..f, proptest::collection::vec(
+                        // Smooth runs (neighbours within f) and jumps, to exercise both branches.
+                        prop_oneof![3 => value(), 1 => (0.0f32..2.0).prop_map(|v| 30.0 + v)], sw * sh))
+                }),
         ) {
-            let (w, h) = (f * sw + extra_w, f * sh + extra_h);
-            let got = widen_disparity(&small, sw, f, w, h);
-            let want = widen_disparity_reference(&small, sw, f, w, h);
+            // Both axes reduced by f, or the rows alone.
+            let factors = if rows_only { (1, f) } else { (f, f) };
+            let (w, h) = (factors.0 * sw + extra_w, f * sh + extra_h);
+            let got = widen_disparity(&small, sw, factors, w, h);
+            let want = widen_disparity_reference(&small, sw, factors, w, h);
             for (i, (&a, &b)) in got.as_slice().iter().zip(want.as_slice()).enumerate() {
-                prop_assert_eq!(a.to_bits(), b.to_bits(), "pixel {} of {}x{} (f {})", i, w, h, f);
+                prop_assert_eq!(a.to_bits(), b.to_bits(), "pixel {} of {}x{} (factors {:?})", i, w, h, factors);
             }
         }
     }

@@ -97,7 +97,9 @@ def test_compute_detailed(pair):
     bm = sd.Matcher(matcher="bm", max_disparity=32).compute_detailed(left, right)
     assert bm.confidence is None and bm.adaptation is None and bm.search is None
     # Which search ran: the whole range at 32 disparities, bands with search="hierarchical".
-    assert res.search == {"search": "full", "levels": 0, "mean_disparities_searched": 32.0, "downscale": 1}
+    assert res.search == {
+        "search": "full", "levels": 0, "mean_disparities_searched": 32.0, "downscale": 1, "rows_halved": False
+    }
     coarse = sd.Matcher(max_disparity=32, search="hierarchical").compute_detailed(left, right).search
     assert coarse["search"] == "hierarchical" and coarse["levels"] == 1
     assert 0 < coarse["mean_disparities_searched"] <= 32
@@ -112,6 +114,12 @@ def test_compute_detailed(pair):
     for options, factor in cases:
         res = sd.Matcher(max_disparity=32, **options).compute_detailed(big_left, big_right)
         assert res.search["downscale"] == factor and res.disparity.shape == big_left.shape, options
+        assert not res.search["rows_halved"]
+    # A range too short to halve (16 disparities): the rows alone are halved.
+    short = sd.Matcher(max_disparity=16, preset="fast").compute_detailed(big_left, big_right)
+    assert (short.search["downscale"], short.search["rows_halved"]) == (1, True)
+    assert short.disparity.shape == big_left.shape
+    assert np.nanmedian(short.disparity) == pytest.approx(12, abs=0.5)
     for bad in (0, 9, "half", 1.5):
         with pytest.raises(ValueError, match="downscale"):
             sd.Matcher(max_disparity=32, downscale=bad)
