@@ -146,7 +146,10 @@ pub enum Downscale {
     /// at least [`COARSE_MIN_PIXELS`] pixels: [`Preset::Fast`]'s default, which trades the
     /// finest detail and half the disparity resolution for about an eighth of the work (measured
     /// on the seven Middlebury scenes, still fewer bad pixels than OpenCV's SGBM_3WAY,
-    /// docs/performance.md). Pairs `Auto` already reduces are reduced alike.
+    /// docs/performance.md). Where the range is too short to halve, the rows alone are halved
+    /// (if [`COARSE_MIN_PIXELS`] remain): half the work, the disparities at full resolution, no
+    /// vertical detail below 2 px (tsukuba's 16 disparities: bad2 4.25 → 4.28). Pairs `Auto`
+    /// already reduces are reduced alike.
     Coarse,
     /// Reduce by this factor (1: full resolution), at most [`MAX_DOWNSCALE`].
     By(usize),
@@ -154,7 +157,8 @@ pub enum Downscale {
 
 /// [`Downscale::Coarse`] halves a sharp pair only where the halved range keeps this many
 /// disparities: below it the reduced match's disparity steps (2 px at full size) are too coarse
-/// for the range (tsukuba's 16 disparities halved to 8: bad2 4.25 → 9.81, above SGBM_3WAY's 6.01).
+/// for the range (tsukuba's 16 disparities halved to 8: bad2 4.25 → 9.81, above SGBM_3WAY's
+/// 6.01), and only the rows are halved.
 pub const COARSE_MIN_DISPARITIES: usize = 16;
 
 /// [`Downscale::Coarse`] halves a sharp pair only where the halved pair keeps this many pixels
