@@ -82,6 +82,18 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     Ok(output)
 }
 
+/// Both views reduced by the factors `(columns, rows)` ([`crate::radiometric::downsample_by`]).
+fn reduce_pair(
+    left: &GrayImage,
+    right: &GrayImage,
+    (columns, rows): (usize, usize),
+) -> (GrayImage, GrayImage) {
+    rayon::join(
+        || crate::radiometric::downsample_by(left, columns, rows),
+        || crate::radiometric::downsample_by(right, columns, rows),
+    )
+}
+
 /// The reduction [`SgmParams::downscale`] asks for on this pair, if any: the factors of the
 /// columns and of the rows, and both views reduced by them.
 fn reduction(
@@ -89,104 +101,102 @@ fn reduction(
     right: &GrayImage,
     params: &SgmParams,
 ) -> Option<((usize, usize), GrayImage, GrayImage)> {
-    let (width, height) = left.size();
-    let reduce = |(l, r): (&GrayImage, &GrayImage), f: usize| {
-        rayon::join(|| crate::radiometric::downsample(l, f), || crate::radiometric::downsample(r, f))
+    let reduced = |factors| {
+        let (l, r) = reduce_pair(left, right, factors);
+        (factors, l, r)
     };
     match params.downscale {
-        Downscale::By(f) if f > 1 => {
-            let (l, r) = reduce((left, right), f);
-            Some(((f, f), l, r))
-        }
+        Downscale::By(f) if f > 1 => Some(reduced((f, f))),
         Downscale::By(_) => None,
         Downscale::Auto | Downscale::Coarse => {
-            // Halved while the halved pair keeps the floor and both halved views kept the
-            // gradient energy of views with no detail finer than 2 px (each level's energies
-            // computed once); but a disparity matched reduced by f carries f times the reduced
-            // match's subpixel error, so the last of two or more halvings becomes a reduction
-            // by 1.5 (4 → 3, 8 → 6): at 4 a half-pixel error of the reduced match is already a
-            // 2 px error (docs/performance.md).
-            let fits = |(w, h): (usize, usize), min_pixels: usize| {
-                let (hw, hh) = (w / 2, h / 2);
-                hw * hh >= min_pixels && hw >= params.census.width && hh >= params.census.height
-            };
-            let halvable = |size| fits(size, AUTO_DOWNSCALE_MIN_PIXELS);
-            let energies =
-                |(l, r): (&GrayImage, &GrayImage)| rayon::join(|| gradient_energy(l), || gradient_energy(r));
             if params.range.count() < 2 {
                 return None;
             }
-            let coarse = params.downscale == Downscale::Coarse;
+            if let Some((f, l, r)) = halved_pair(left, right, params) {
+                return Some(((f, f), l, r));
+            }
             // Coarse where the range is too short to halve: the rows alone are halved (the
-            // disparities keep their resolution), if `auto` does not reduce the pair anyway.
-            let halve_rows = || {
-                let short_range = params.range.count() / 2 < COARSE_MIN_DISPARITIES;
-                let rows_fit = height / 2 * width >= COARSE_MIN_PIXELS && height / 2 >= params.census.height;
-                (coarse && short_range && rows_fit).then(|| {
-                    let (l, r) = rayon::join(
-                        || crate::radiometric::downsample_by(left, 1, 2),
-                        || crate::radiometric::downsample_by(right, 1, 2),
-                    );
-                    ((1, 2), l, r)
-                })
-            };
-            let mut halved: Option<(GrayImage, GrayImage)> = None;
-            let mut halvings = 0;
-            // Coarse: the first halving needs no smoothness (so no full-resolution energies),
-            // only a range and a size that survive it.
-            let mut energy = if coarse
-                && params.range.count() / 2 >= COARSE_MIN_DISPARITIES
-                && fits((width, height), COARSE_MIN_PIXELS)
-            {
-                let next = reduce((left, right), 2);
-                let next_energy = energies((&next.0, &next.1));
-                (halved, halvings) = (Some(next), 1);
-                next_energy
-            } else if halvable((width, height)) {
-                energies((left, right))
-            } else {
-                return halve_rows();
-            };
-            // The sensor noise, estimated once and only where the raw energies fail the test (a
-            // pair that passes without the noise passes with it discounted).
-            let mut noise: Option<f64> = None;
-            loop {
-                let (l, r) = halved.as_ref().map_or((left, right), |(l, r)| (l, r));
-                if !halvable(l.size()) {
-                    break;
-                }
-                let next = reduce((l, r), 2);
-                let next_energy = energies((&next.0, &next.1));
-                let both_smooth = |variance: f64| {
-                    smooth_enough(energy.0, next_energy.0, variance)
-                        && smooth_enough(energy.1, next_energy.1, variance)
-                };
-                if !both_smooth(0.0) {
-                    // The rig's noise: the larger of the two views' estimates, as a view
-                    // resampled for its vertical offset (or blurred) lost part of its noise to
-                    // the interpolation; at most σ MAX_SENSOR_NOISE. Each halving (a 2 × 2
-                    // mean) divides its variance by 4.
-                    let rig_noise = *noise.get_or_insert_with(|| {
-                        let (l, r) = rayon::join(|| noise_variance(left), || noise_variance(right));
-                        l.max(r).min((MAX_SENSOR_NOISE * 257.0).powi(2))
-                    });
-                    if !both_smooth(rig_noise / 4f64.powi(halvings)) {
-                        break;
-                    }
-                }
-                halvings += 1;
-                (halved, energy) = (Some(next), next_energy);
+            // disparities keep their resolution).
+            let (width, height) = left.size();
+            let short_range = params.range.count() / 2 < COARSE_MIN_DISPARITIES;
+            let rows_fit = height / 2 * width >= COARSE_MIN_PIXELS && height / 2 >= params.census.height;
+            (params.downscale == Downscale::Coarse && short_range && rows_fit).then(|| reduced((1, 2)))
+        }
+    }
+}
+
+/// The pair as [`Downscale::Auto`] (or [`Downscale::Coarse`]) reduces both its sides, if it
+/// does, and the factor. Halved while the halved pair keeps the floor and both halved views kept the gradient
+/// energy of views with no detail finer than 2 px (each level's energies computed once); but a
+/// disparity matched reduced by f carries f times the reduced match's subpixel error, so the
+/// last of two or more halvings becomes a reduction by 1.5 (4 → 3, 8 → 6): at 4 a half-pixel
+/// error of the reduced match is already a 2 px error (docs/performance.md).
+fn halved_pair(
+    left: &GrayImage,
+    right: &GrayImage,
+    params: &SgmParams,
+) -> Option<(usize, GrayImage, GrayImage)> {
+    let fits = |(w, h): (usize, usize), min_pixels: usize| {
+        let (hw, hh) = (w / 2, h / 2);
+        hw * hh >= min_pixels && hw >= params.census.width && hh >= params.census.height
+    };
+    let halvable = |size| fits(size, AUTO_DOWNSCALE_MIN_PIXELS);
+    let energies =
+        |(l, r): (&GrayImage, &GrayImage)| rayon::join(|| gradient_energy(l), || gradient_energy(r));
+    let mut halved: Option<(GrayImage, GrayImage)> = None;
+    let mut halvings = 0;
+    // Coarse: the first halving needs no smoothness (so no full-resolution energies), only a
+    // range and a size that survive it.
+    let mut energy = if params.downscale == Downscale::Coarse
+        && params.range.count() / 2 >= COARSE_MIN_DISPARITIES
+        && fits(left.size(), COARSE_MIN_PIXELS)
+    {
+        let next = reduce_pair(left, right, (2, 2));
+        let next_energy = energies((&next.0, &next.1));
+        (halved, halvings) = (Some(next), 1);
+        next_energy
+    } else if halvable(left.size()) {
+        energies((left, right))
+    } else {
+        return None;
+    };
+    // The sensor noise, estimated once and only where the raw energies fail the test (a pair
+    // that passes without the noise passes with it discounted).
+    let mut noise: Option<f64> = None;
+    loop {
+        let (l, r) = halved.as_ref().map_or((left, right), |(l, r)| (l, r));
+        if !halvable(l.size()) {
+            break;
+        }
+        let next = reduce_pair(l, r, (2, 2));
+        let next_energy = energies((&next.0, &next.1));
+        let both_smooth = |variance: f64| {
+            smooth_enough(energy.0, next_energy.0, variance)
+                && smooth_enough(energy.1, next_energy.1, variance)
+        };
+        if !both_smooth(0.0) {
+            // The rig's noise: the larger of the two views' estimates, as a view resampled for
+            // its vertical offset (or blurred) lost part of its noise to the interpolation; at
+            // most σ MAX_SENSOR_NOISE. Each halving (a 2 × 2 mean) divides its variance by 4.
+            let rig_noise = *noise.get_or_insert_with(|| {
+                let (l, r) = rayon::join(|| noise_variance(left), || noise_variance(right));
+                l.max(r).min((MAX_SENSOR_NOISE * 257.0).powi(2))
+            });
+            if !both_smooth(rig_noise / 4f64.powi(halvings)) {
+                break;
             }
-            if halvings == 0 {
-                return halve_rows();
-            }
-            if halvings < 2 {
-                return halved.map(|(l, r)| ((2, 2), l, r));
-            }
+        }
+        halvings += 1;
+        (halved, energy) = (Some(next), next_energy);
+    }
+    match halvings {
+        0 => None,
+        1 => halved.map(|(l, r)| (2, l, r)),
+        _ => {
             drop(halved);
             let f = 3 << (halvings - 2);
-            let (l, r) = reduce((left, right), f);
-            Some(((f, f), l, r))
+            let (l, r) = reduce_pair(left, right, (f, f));
+            Some((f, l, r))
         }
     }
 }
@@ -297,7 +307,7 @@ fn match_downscaled(
     left: &GrayImage,
     small_left: GrayImage,
     small_right: GrayImage,
-    (f, rows): (usize, usize),
+    factors @ (f, rows): (usize, usize),
     params: &SgmParams,
 ) -> Result<SgmOutput, Error> {
     let (width, height) = left.size();
@@ -339,7 +349,6 @@ fn match_downscaled(
         }
     });
     let (small_disparity, small_status) = (small.disparity.as_slice(), small.status.as_slice());
-    let factors = (f, rows);
     let disparity = widen_disparity(small_disparity, small_width, factors, width, height);
     let status = replicate(small_status, small_width, factors, width, height);
     let confidence =
