@@ -129,8 +129,15 @@ pub fn estimate_alignment(left: &GrayImage, right: &GrayImage, range: DisparityR
     // more than the matches themselves.
     let left_full = Full::new(left);
     let right_full = Full::new(right);
-    let left_half = Plane::half(left);
-    let right_half = Plane::half(right);
+    // The left view's half-resolution plane and its patches beside the right view's plane.
+    let ((left_half, (first, rest)), right_half) = rayon::join(
+        || {
+            let half = Plane::half(left);
+            let patches = select_patches(&half);
+            (half, patches)
+        },
+        || Plane::half(right),
+    );
     let reach = range.min.unsigned_abs().max(range.max.unsigned_abs()).min(width as u32) as i32;
     let coarse_reach = (reach + 1) / 2 + 1;
 
@@ -140,7 +147,6 @@ pub fn estimate_alignment(left: &GrayImage, right: &GrayImage, range: DisparityR
         let (xr, dy) = fine_search(&left_full, &right_full, x, y, x as i32 - 2 * d, 2 * dy)?;
         refine(&left_full, &right_full, x, y, xr, dy)
     };
-    let (first, rest) = select_patches(&left_half);
     // One patch is a few microseconds of work: rayon's splitting keeps the units large enough.
     let mut matches: Vec<PatchMatch> = first.par_iter().filter_map(match_patch).collect();
     if matches.len() < WANTED_MATCHES && !rest.is_empty() {
@@ -253,13 +259,15 @@ impl Plane {
         let (full_width, full_height) = image.size();
         let (width, height) = (full_width / 2, full_height / 2);
         let source = image.as_slice();
-        let mut data = Vec::with_capacity(width * height);
-        for y in 0..height {
-            let top = &source[2 * y * full_width..][..2 * width];
-            let bottom = &source[(2 * y + 1) * full_width..][..2 * width];
-            data.extend(top.chunks_exact(2).zip(bottom.chunks_exact(2)).map(|(t, b)| {
-                (t[0] as u32 + t[1] as u32 + b[0] as u32 + b[1] as u32) as f32 * (0.25 * UNIT)
-            }));
+        let mut data = vec![0f32; width * height];
+        if width > 0 {
+            data.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+                let top = &source[2 * y * full_width..][..2 * width];
+                let bottom = &source[(2 * y + 1) * full_width..][..2 * width];
+                for (value, (t, b)) in row.iter_mut().zip(top.chunks_exact(2).zip(bottom.chunks_exact(2))) {
+                    *value = (t[0] as u32 + t[1] as u32 + b[0] as u32 + b[1] as u32) as f32 * (0.25 * UNIT);
+                }
+            });
         }
         Plane { width, height, data }
     }
@@ -286,28 +294,33 @@ fn select_patches(half: &Plane) -> (Vec<Centre>, Vec<Centre>) {
     // Gradient products summed over 2×2 blocks: block (bx, by) holds half-resolution pixels
     // 2bx..2bx+2 × 2by..2by+2 (central differences, none on the border).
     let (bw, bh) = (width / 2, height / 2);
-    let mut blocks = vec![[0f32; 3]; bw * bh];
-    for y in 1..(2 * bh).min(height - 1) {
-        let (above, row, below) = (half.row(y - 1), half.row(y), half.row(y + 1));
-        let block_row = &mut blocks[(y / 2) * bw..(y / 2 + 1) * bw];
-        for x in 1..(2 * bw).min(width - 1) {
-            // Half-resolution pixels are two full-resolution ones apart: a quarter of the difference.
-            let gx = 0.25 * (row[x + 1] - row[x - 1]);
-            let gy = 0.25 * (below[x] - above[x]);
-            let b = &mut block_row[x / 2];
-            b[0] += gx * gx;
-            b[1] += gy * gy;
-            b[2] += gx * gy;
-        }
+    if bw == 0 || bh == 0 {
+        return (Vec::new(), Vec::new());
     }
+    let mut blocks = vec![[0f32; 3]; bw * bh];
+    let rows_end = (2 * bh).min(height - 1);
+    blocks.par_chunks_mut(bw).enumerate().for_each(|(by, block_row)| {
+        for y in (2 * by).max(1)..(2 * by + 2).min(rows_end) {
+            let (above, row, below) = (half.row(y - 1), half.row(y), half.row(y + 1));
+            for x in 1..(2 * bw).min(width - 1) {
+                // Half-resolution pixels are two full-resolution ones apart: a quarter of the
+                // difference.
+                let gx = 0.25 * (row[x + 1] - row[x - 1]);
+                let gy = 0.25 * (below[x] - above[x]);
+                let b = &mut block_row[x / 2];
+                b[0] += gx * gx;
+                b[1] += gy * gy;
+                b[2] += gx * gy;
+            }
+        }
+    });
     // The full-resolution patch is about 8×8 half-resolution pixels: for an even centre (x, y),
     // half-resolution pixels x−4..x+4 × y−4..y+4, the 4×4 blocks from (x/2 − 2, y/2 − 2).
     const R: usize = RADIUS.div_ceil(2);
     const B: usize = R / 2;
     let mut across = vec![[0f32; 3]; bw * bh];
-    for by in 0..bh {
-        let (src, dst) = (&blocks[by * bw..(by + 1) * bw], &mut across[by * bw..(by + 1) * bw]);
-        for bx in B..=bw - B {
+    across.par_chunks_mut(bw).zip(blocks.par_chunks(bw)).for_each(|(dst, src)| {
+        for bx in B..=bw.saturating_sub(B) {
             let mut sum = [0f32; 3];
             for b in &src[bx - B..bx + B] {
                 (0..3).for_each(|k| sum[k] += b[k]);
@@ -316,7 +329,7 @@ fn select_patches(half: &Plane) -> (Vec<Centre>, Vec<Centre>) {
                 dst[bx] = sum;
             }
         }
-    }
+    });
     let n = ((2 * R) * (2 * R)) as f64;
     let structure = |x: usize, y: usize| {
         let (bx, by) = (x / 2, y / 2);
@@ -335,21 +348,28 @@ fn select_patches(half: &Plane) -> (Vec<Centre>, Vec<Centre>) {
     let area = (4 * (x_hi - x_lo) * (y_hi - y_lo)) as f64;
     let target = (area / 512.0).clamp(64.0, 1024.0);
     let cell = ((area / target).sqrt() / 2.0).round().max((RADIUS + 1) as f64) as usize;
-    let mut best = Vec::new();
-    for cy in (y_lo..y_hi).step_by(cell) {
-        for cx in (x_lo..x_hi).step_by(cell) {
-            let mut cell_best: Option<(f64, usize, usize)> = None;
-            for y in (cy.next_multiple_of(2)..(cy + cell).min(y_hi)).step_by(2) {
-                for x in (cx.next_multiple_of(2)..(cx + cell).min(x_hi)).step_by(2) {
-                    let s = structure(x, y);
-                    if cell_best.map_or(true, |(b, _, _)| s > b) {
-                        cell_best = Some((s, x, y));
+    // Rows of cells in parallel, their results kept in raster order.
+    let cell_rows: Vec<usize> = (y_lo..y_hi).step_by(cell).collect();
+    let best_by_row: Vec<Vec<(f64, usize, usize)>> = cell_rows
+        .par_iter()
+        .map(|&cy| {
+            let mut best = Vec::new();
+            for cx in (x_lo..x_hi).step_by(cell) {
+                let mut cell_best: Option<(f64, usize, usize)> = None;
+                for y in (cy.next_multiple_of(2)..(cy + cell).min(y_hi)).step_by(2) {
+                    for x in (cx.next_multiple_of(2)..(cx + cell).min(x_hi)).step_by(2) {
+                        let s = structure(x, y);
+                        if cell_best.map_or(true, |(b, _, _)| s > b) {
+                            cell_best = Some((s, x, y));
+                        }
                     }
                 }
+                best.extend(cell_best);
             }
-            best.extend(cell_best);
-        }
-    }
+            best
+        })
+        .collect();
+    let best: Vec<(f64, usize, usize)> = best_by_row.into_iter().flatten().collect();
     // Strong enough in absolute terms (above noise) and beside the image's best cells (so a
     // barely textured cell does not dilute the fit with noisy offsets).
     let mut scores: Vec<f64> = best.iter().map(|b| b.0).collect();
@@ -467,11 +487,13 @@ impl CoarseSearch<'_> {
     }
 }
 
-/// `acc[k] = Σ patch[v][u]·row(v)[k + u]` for the coarse patch: eight columns at a time, so the
-/// sums stay in registers over all taps instead of going through memory at each one.
+/// `acc[k] = Σ patch[v][u]·row(v)[k + u]` for the coarse patch: sixteen columns at a time, so
+/// the sums stay in registers over all taps instead of going through memory at each one, and each
+/// tap's weight is broadcast once for four vectors (8% faster than eight columns, 32 no faster;
+/// every sum keeps its order, so the results are the same).
 fn correlate<'a>(patch: &[f32], row: impl Fn(usize) -> &'a [f32], acc: &mut [f32]) {
     const N: usize = 2 * COARSE_RADIUS + 1;
-    const L: usize = 8;
+    const L: usize = 16;
     let count = acc.len();
     let block = |k0: usize| {
         let mut sums = [0f32; L];
@@ -862,4 +884,33 @@ fn robust_line(matches: &[PatchMatch], cx: f64) -> LineFit {
     }
     let inliers = matches.iter().filter(|m| residual(m, offset, slope).abs() < cutoff).count();
     LineFit { offset, slope, inliers }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `correlate`'s blocks (the last one overlapping the one before) and its short-row path give
+    /// the plain sum of each output, term by term in the same order, for every row length.
+    #[test]
+    fn correlate_matches_the_plain_sum() {
+        const N: usize = 2 * COARSE_RADIUS + 1;
+        let patch: Vec<f32> = (0..N * N).map(|i| ((i * 37 % 23) as f32 - 11.0) / 7.0).collect();
+        for count in 1..70 {
+            let rows: Vec<Vec<f32>> = (0..N)
+                .map(|v| (0..count + N - 1).map(|x| ((x * 13 + v * 29) % 31) as f32 / 17.0).collect())
+                .collect();
+            let mut acc = vec![f32::NAN; count];
+            correlate(&patch, |v| rows[v].as_slice(), &mut acc);
+            for (k, &a) in acc.iter().enumerate() {
+                let mut sum = 0f32;
+                for v in 0..N {
+                    for u in 0..N {
+                        sum += patch[v * N + u] * rows[v][k + u];
+                    }
+                }
+                assert_eq!(a.to_bits(), sum.to_bits(), "count {count}, column {k}");
+            }
+        }
+    }
 }
