@@ -41,6 +41,7 @@ class Matcher:
         block_size: Optional[int] = None,
         bm_cost: Optional[Literal["census", "sad"]] = None,
         align: bool = True,
+        rectification_check: Literal["every", "first"] = "every",
         max_memory: Optional[Union[int, str]] = None,
         max_pixels: Optional[Union[int, str]] = None,
         threads: Optional[int] = None,

@@ -12,6 +12,9 @@ use crate::{Error, Matcher, Plan};
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rectification {
     pub alignment: Alignment,
+    /// The alignment was measured on this pair (not taken from
+    /// [`crate::PipelineParams::known_alignment`]).
+    pub measured: bool,
     /// The right view was resampled to line up with the left one before matching.
     pub compensated: bool,
 }
@@ -76,8 +79,11 @@ impl Plan {
         let params = &self.params;
 
         let t = Instant::now();
-        let alignment = stereo_rectify::estimate_alignment(left, &right, self.range());
-        let mut rectification = Rectification { alignment, compensated: false };
+        let (alignment, measured) = match params.known_alignment {
+            Some(known) => (known, false),
+            None => (stereo_rectify::estimate_alignment(left, &right, self.range()), true),
+        };
+        let mut rectification = Rectification { alignment, measured, compensated: false };
         rectification.compensated = rectification.misaligned() && params.align;
         let right = if rectification.compensated {
             stereo_rectify::compensate(&right, &rectification.alignment)

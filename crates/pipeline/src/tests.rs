@@ -147,3 +147,46 @@ fn matcher_options_resolve_like_the_presets_and_reject_the_other_matchers_option
         OptionError::OtherMatcher { option: "block_size", matcher: MatcherKind::Bm }
     );
 }
+
+/// A stream's later pairs can take the alignment measured on its first one: the same map as
+/// measuring again, misaligned pairs still resampled, and the result says it was not measured.
+#[test]
+fn a_known_alignment_replaces_the_measurement() {
+    let scene = render(&SceneParams { width: 320, height: 240, ..SceneParams::default() });
+    // The right view 0.8 px lower: what a drifted rectification leaves.
+    let lowered = stereo_rectify::Alignment {
+        vertical_offset_px: -0.8,
+        rotation_deg: 0.0,
+        max_abs_offset_px: 0.8,
+        patches_used: 0,
+        negative_disparity_share: 0.0,
+        verdict: stereo_rectify::AlignmentVerdict::Misaligned,
+    };
+    let right = stereo_rectify::compensate(&scene.right, &lowered);
+    let params = sgm(64);
+    let plan = Plan::new(&params, scene.left.size(), right.size()).unwrap();
+    let first = plan.run_gray(&scene.left, right.clone()).unwrap();
+    assert!(first.rectification.measured);
+    assert!(first.rectification.compensated, "{:?}", first.rectification);
+    let offset = first.rectification.alignment.vertical_offset_px;
+    assert!((offset - 0.8).abs() < 0.1, "measured {offset} px, shifted by 0.8");
+
+    let mut known = params.clone();
+    known.known_alignment = Some(first.rectification.alignment);
+    let plan = Plan::new(&known, scene.left.size(), right.size()).unwrap();
+    let later = plan.run_gray(&scene.left, right.clone()).unwrap();
+    assert!(!later.rectification.measured);
+    assert_eq!(later.rectification.alignment, first.rectification.alignment);
+    assert!(later.rectification.compensated);
+    let bits = |m: &DisparityMap| m.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&later.disparity), bits(&first.disparity));
+
+    // A known alignment is taken as given: told the rows line up, the pair is matched as loaded.
+    let mut aligned = params.clone();
+    aligned.known_alignment =
+        Some(stereo_rectify::Alignment { verdict: stereo_rectify::AlignmentVerdict::Aligned, ..lowered });
+    let plan = Plan::new(&aligned, scene.left.size(), right.size()).unwrap();
+    let trusted = plan.run_gray(&scene.left, right).unwrap();
+    assert!(!trusted.rectification.compensated && !trusted.rectification.measured);
+    assert_ne!(bits(&trusted.disparity), bits(&first.disparity));
+}

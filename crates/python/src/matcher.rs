@@ -2,7 +2,7 @@
 //! the command line resolves them (`src/config.rs`, `fn matcher`), run through the same
 //! `stereo_pipeline::Plan`.
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use numpy::ndarray::Array2;
@@ -14,7 +14,7 @@ use stereo_pipeline::{
     parse_named, BmCost, Downscale, MatcherKind, MatcherOptions, Named, OptionError, PathCount, Preset,
     Search, Subpixel,
 };
-use stereo_pipeline::{DepthResult, MemoryLimit, PipelineParams, Plan};
+use stereo_pipeline::{Alignment, AlignmentVerdict, DepthResult, MemoryLimit, PipelineParams, Plan};
 
 use crate::errors::{self, no_panic, value_error};
 use crate::input::{Input, View};
@@ -60,6 +60,9 @@ use crate::input::{Input, View};
 /// - ``block_size`` [None: 11]: BM: odd window side, at least 3.
 /// - ``bm_cost`` [None: "census"]: BM: "census" or "sad".
 /// - ``align`` [True]: resample the right view when its rows are measured off the left's.
+/// - ``rectification_check`` ["every"]: "every" measures each pair's vertical alignment (1-2.5 ms
+///   per pair); "first" measures until a pair of a given size gives a verdict, then reuses that
+///   alignment for the later pairs of that size (one rig streaming frames).
 /// - ``max_memory`` [None: no limit]: bytes (int, or "512M", "4G"): SGM then aggregates in
 ///   strips that fit; a pair that cannot fit raises MemoryError.
 /// - ``max_pixels`` [100M]: largest image accepted, pixels (int, or "250M").
@@ -67,8 +70,8 @@ use crate::input::{Input, View};
 ///   threads for this Matcher (e.g. 1 per Matcher when several Python threads match at once).
 ///
 /// ``compute`` and ``compute_detailed`` release the GIL while they match, so Python threads
-/// matching different pairs run in parallel. A Matcher holds no per-pair state and can be
-/// shared between threads.
+/// matching different pairs run in parallel. A Matcher can be shared between threads; it holds
+/// no per-pair state beyond the alignment ``rectification_check="first"`` keeps.
 #[pyclass(frozen, module = "stereo_depth")]
 pub struct Matcher {
     /// The resolved matcher; its range is set per image width.
@@ -77,6 +80,10 @@ pub struct Matcher {
     max_disparity: Option<i32>,
     min_confidence: Option<f32>,
     align: bool,
+    /// `rectification_check="first"`: reuse the first alignment measured with a verdict.
+    check_first: bool,
+    /// That alignment, with the image size it was measured at.
+    known_alignment: Mutex<Option<((usize, usize), Alignment)>>,
     max_memory: Option<u64>,
     max_pixels: u64,
     threads: Option<usize>,
@@ -133,8 +140,8 @@ impl Matcher {
         min_confidence = None, single_pass = false, paths = None, search = None, downscale = None,
         p1 = None, p2 = None,
         uniqueness = None, lr_max_diff = None, lr_check = true, subpixel = None,
-        block_size = None, bm_cost = None, align = true, max_memory = None, max_pixels = None,
-        threads = None
+        block_size = None, bm_cost = None, align = true, rectification_check = "every",
+        max_memory = None, max_pixels = None, threads = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -160,6 +167,7 @@ impl Matcher {
         block_size: Option<i64>,
         bm_cost: Option<&str>,
         align: bool,
+        rectification_check: &str,
         max_memory: Option<&Bound<'_, PyAny>>,
         max_pixels: Option<&Bound<'_, PyAny>>,
         threads: Option<i64>,
@@ -228,6 +236,15 @@ impl Matcher {
             }
             OptionError::Invalid { option, message } => value_error(format!("{option} {message}")),
         })?;
+        let check_first = match rectification_check {
+            "every" => false,
+            "first" => true,
+            other => {
+                return Err(value_error(format!(
+                    "rectification_check must be \"every\" or \"first\", got {other:?}"
+                )))
+            }
+        };
         let max_memory = max_memory.map(|m| scaled(m, "max_memory", 1024)).transpose()?;
         let max_pixels = max_pixels
             .map(|m| scaled(m, "max_pixels", 1000))
@@ -248,6 +265,8 @@ impl Matcher {
             max_disparity: max_d,
             min_confidence: min_confidence.map(|t| t as f32),
             align,
+            check_first,
+            known_alignment: Mutex::new(None),
             max_memory,
             max_pixels,
             threads,
@@ -307,6 +326,7 @@ impl Matcher {
         rect.set_item("negative_disparity_share", a.negative_disparity_share)?;
         rect.set_item("verdict", format!("{:?}", a.verdict).to_ascii_lowercase())?;
         rect.set_item("compensated", result.rectification.compensated)?;
+        rect.set_item("measured", result.rectification.measured)?;
         let adaptation = match &result.adaptation {
             Some(a) => {
                 let d = PyDict::new(py);
@@ -390,6 +410,7 @@ impl Matcher {
         }
         d.set_item("min_confidence", self.min_confidence)?;
         d.set_item("align", self.align)?;
+        d.set_item("rectification_check", if self.check_first { "first" } else { "every" })?;
         d.set_item("max_memory", self.max_memory)?;
         d.set_item("max_pixels", self.max_pixels)?;
         d.set_item("threads", self.threads)?;
@@ -448,6 +469,7 @@ impl Matcher {
         matcher.set_range(range);
         let mut params = PipelineParams::new(matcher);
         params.align = self.align;
+        params.known_alignment = self.known_alignment(size);
         params.min_confidence = self.min_confidence;
         let limit = self.max_memory.map(|bytes| {
             // Both grey images, the disparity and one more map, as the command line counts them.
@@ -490,7 +512,28 @@ impl Matcher {
             Some(pool) => pool.install(work),
             None => work(),
         })?;
+        if self.check_first && result.rectification.measured {
+            self.remember_alignment(plan.size(), &result.rectification.alignment);
+        }
         Ok((result, RunInfo { convert_ms, total_ms, range: plan.range(), copied }))
+    }
+
+    /// With `rectification_check="first"`: the alignment kept for pairs of this size.
+    fn known_alignment(&self, size: (usize, usize)) -> Option<Alignment> {
+        if !self.check_first {
+            return None;
+        }
+        let known = self.known_alignment.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        known.filter(|(at, _)| *at == size).map(|(_, alignment)| alignment)
+    }
+
+    /// Keeps a measured alignment with a verdict (a flat or dark first frame gives none: the
+    /// next pair is measured again); the latest size measured replaces an earlier one.
+    fn remember_alignment(&self, size: (usize, usize), alignment: &Alignment) {
+        if alignment.verdict != AlignmentVerdict::Unknown {
+            let mut known = self.known_alignment.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+            *known = Some((size, *alignment));
+        }
     }
 }
 

@@ -156,7 +156,7 @@ def test_help_lists_every_option_with_its_default():
     text = sd.Matcher.__doc__
     for option in ["min_disparity", "max_disparity", "matcher", "preset", "fill", "speckle_size", "edge_snap",
                    "confidence", "min_confidence", "single_pass", "paths", "search", "downscale", "p1", "p2", "uniqueness",
-                   "lr_max_diff", "lr_check", "subpixel", "block_size", "bm_cost", "align", "max_memory",
+                   "lr_max_diff", "lr_check", "subpixel", "block_size", "bm_cost", "align", "rectification_check", "max_memory",
                    "max_pixels", "threads"]:
         assert f"``{option}`` [" in text, option
     # The defaults the docstring states are the library's.
@@ -205,3 +205,35 @@ def test_noisy_pairs_take_an_edge_aware_p2_for_the_default_output(pair):
     assert a["census_smoothing"] and a["p2_edge_scale"] == 30 and a["census_tolerance"] == 1
     f = sd.Matcher(max_disparity=32, fill=True).compute_detailed(*noisy).adaptation
     assert f["census_smoothing"] and f["p2_edge_scale"] == 0 and f["p2"] >= 80 and a["p2"] == 2 * f["p2"]
+
+
+def test_rectification_check_first_reuses_the_streams_alignment():
+    left, right = scene(width=256, height=192, disparity=8)
+    # The right view one row lower, as a drifted rectification leaves it.
+    lowered = np.vstack([right[:1], right[:-1]])
+    every = sd.Matcher(max_disparity=32)
+    first = sd.Matcher(max_disparity=32, rectification_check="first")
+    assert first.params["rectification_check"] == "first" and every.params["rectification_check"] == "every"
+    measured = first.compute_detailed(left, lowered)
+    assert measured.rectification["measured"] and measured.rectification["compensated"]
+    assert abs(measured.rectification["vertical_offset_px"] - 1.0) < 0.15
+    reused = first.compute_detailed(left, lowered)
+    assert not reused.rectification["measured"] and reused.rectification["compensated"]
+    assert reused.rectification["vertical_offset_px"] == measured.rectification["vertical_offset_px"]
+    same(reused.disparity, measured.disparity)
+    same(reused.disparity, every.compute(left, lowered))
+    assert every.compute_detailed(left, lowered).rectification["measured"]
+    # Another size is measured afresh.
+    assert first.compute_detailed(left[:160], lowered[:160]).rectification["measured"]
+
+
+def test_rectification_check_first_measures_until_a_verdict():
+    left, right = scene(width=256, height=192, disparity=8)
+    flat = np.full_like(left, 128)
+    m = sd.Matcher(max_disparity=32, rectification_check="first")
+    none = m.compute_detailed(flat, flat).rectification
+    assert none["measured"] and none["verdict"] == "unknown"
+    assert m.compute_detailed(left, right).rectification["measured"]
+    assert not m.compute_detailed(left, right).rectification["measured"]
+    with pytest.raises(ValueError, match="rectification_check"):
+        sd.Matcher(rectification_check="never")
