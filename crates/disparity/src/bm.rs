@@ -34,6 +34,14 @@ const SOBEL_CAP: i32 = 31 * 257;
 /// Small islands more than twice as far as the scene around them are then invalidated, as in SGM
 /// (`PixelStatus::FarIsland`, docs/robustness.md).
 pub fn block_match(left: &GrayImage, right: &GrayImage, params: &BmParams) -> Result<DisparityMap, Error> {
+    crate::on_pool_thread(|| block_match_on_pool_thread(left, right, params))
+}
+
+fn block_match_on_pool_thread(
+    left: &GrayImage,
+    right: &GrayImage,
+    params: &BmParams,
+) -> Result<DisparityMap, Error> {
     check_pair(left, right)?;
     let (width, height) = left.size();
     crate::check_range(&params.range, width)?;

@@ -81,6 +81,16 @@ pub enum Error {
     Image(#[from] stereo_image::Error),
 }
 
+/// Runs `work` on a thread of the current rayon pool (the global one unless the caller installed
+/// another); on such a thread already, in place. Called from any other thread (a program's main
+/// thread, a Python thread), each of a match's few dozen parallel stages would otherwise be
+/// handed to the pool and waited for, a sleep and a wake-up of the caller each: 95 context
+/// switches per call of tsukuba's fast match on two threads against 20–26 (docs/perf-notes.md).
+pub(crate) fn on_pool_thread<R: Send>(work: impl FnOnce() -> R + Send) -> R {
+    // `scope` runs its body on a worker of the current pool, blocking the caller once.
+    rayon::scope(|_| work())
+}
+
 /// Checks that `range` holds at least one disparity and fits an image `width` pixels wide.
 pub(crate) fn check_range(range: &DisparityRange, width: usize) -> Result<(), Error> {
     if range.max <= range.min {

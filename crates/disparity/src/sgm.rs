@@ -32,6 +32,10 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
 /// [`sgm`] with the per-pixel [`crate::PixelStatus`] image: why each invalid pixel was rejected
 /// and, with [`SgmParams::fill`], which pixels were filled ([`SgmOutput::filled_mask`]).
 pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<SgmOutput, Error> {
+    crate::on_pool_thread(|| sgm_on_pool_thread(left, right, params))
+}
+
+fn sgm_on_pool_thread(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<SgmOutput, Error> {
     check_pair(left, right)?;
     params.validate()?;
     if let Some((factors, small_left, small_right)) = reduction(left, right, params) {

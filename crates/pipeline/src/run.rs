@@ -74,6 +74,13 @@ impl Plan {
     /// Runs the pipeline on the matchers' working grey images (the right one may be resampled in
     /// place of a copy).
     pub fn run_gray(&self, left: &GrayImage, right: GrayImage) -> Result<DepthResult, Error> {
+        // On a thread of the current rayon pool, so the check's and the matcher's parallel stages
+        // start from the pool instead of each being handed over from the caller's thread
+        // (`stereo_disparity::sgm_detailed` does the same for its own stages).
+        rayon::scope(|_| self.run_gray_on_pool_thread(left, right))
+    }
+
+    fn run_gray_on_pool_thread(&self, left: &GrayImage, right: GrayImage) -> Result<DepthResult, Error> {
         self.check_size(left.size())?;
         self.check_size(right.size())?;
         let params = &self.params;
