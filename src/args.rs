@@ -368,7 +368,8 @@ pub struct MatchArgs {
     /// 2 px (enlarged images, soft optics; sensor noise discounted) and at least 100 000 pixels
     /// remain, reducing by 3 where it would halve twice (6 for three times); coarse (the fast
     /// preset's default): as auto, but sharp pairs are halved too where at least 16 disparities and
-    /// 25 000 pixels remain (with fewer disparities, the rows alone); 1: full resolution
+    /// 25 000 pixels remain, and where the range is too short to halve (again) the rows once more
+    /// (the rows alone, or by 4 after a halving); 1: full resolution
     /// (docs/performance.md)
     #[arg(long, value_name = "auto|coarse|N", help_heading = "Matching")]
     pub downscale: Option<Downscale>,

@@ -215,8 +215,8 @@ pub enum MatcherReport {
         mean_disparities_searched: f32,
         /// The factor the pair was reduced by before matching (`--downscale`; 1: full resolution).
         downscale: usize,
-        /// Whether the rows alone were halved before matching (`--downscale coarse` on a range
-        /// too short to halve).
+        /// Whether the rows were halved once more than the columns before matching
+        /// (`--downscale coarse` on a range too short to halve).
         rows_halved: bool,
     },
     Bm {
@@ -524,7 +524,14 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
         writeln!(out, "cost          {cost}, {penalties}")?;
     }
     if let MatcherReport::Sgm { downscale, rows_halved, .. } = &stats.matcher {
-        if *downscale > 1 {
+        if *downscale > 1 && *rows_halved {
+            writeln!(
+                out,
+                "downscale     matched at 1/{downscale} of the width and 1/{} of the height, disparities \
+                 {downscale} times coarser",
+                2 * downscale
+            )?;
+        } else if *downscale > 1 {
             writeln!(
                 out,
                 "downscale     matched at 1/{downscale} of the size, disparities {downscale} times coarser"

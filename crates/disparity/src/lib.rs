@@ -158,8 +158,10 @@ pub enum Downscale {
     /// on the seven Middlebury scenes, still fewer bad pixels than OpenCV's SGBM_3WAY,
     /// docs/performance.md). Where the range is too short to halve, the rows alone are halved
     /// (if [`COARSE_MIN_PIXELS`] remain): half the work, the disparities at full resolution, no
-    /// vertical detail below 2 px (tsukuba's 16 disparities: bad2 4.25 → 4.28). Pairs `Auto`
-    /// already reduces are reduced alike.
+    /// vertical detail below 2 px (tsukuba's 16 disparities: bad2 4.25 → 4.28); likewise a
+    /// pair halved once whose halved range is too short to halve again has its rows halved once
+    /// more (columns by 2, rows by 4: tsukuba 2×'s 32 disparities, bad2 7.21 → 7.09). Pairs
+    /// `Auto` already reduces are reduced alike (the same rule for their rows).
     Coarse,
     /// Reduce by this factor (1: full resolution), at most [`MAX_DOWNSCALE`].
     By(usize),

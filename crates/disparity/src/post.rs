@@ -42,8 +42,9 @@ pub struct SearchReport {
     /// The factor the pair was reduced by before matching ([`crate::SgmParams::downscale`]; 1:
     /// matched at full resolution).
     pub downscale: usize,
-    /// Whether the rows alone were halved before matching (with `downscale` 1:
-    /// [`crate::Downscale::Coarse`] on a range too short to halve).
+    /// Whether the rows were halved once more than the columns before matching
+    /// ([`crate::Downscale::Coarse`] on a range too short to halve: with `downscale` 1 the rows
+    /// alone, with 2 the rows by 4).
     pub rows_halved: bool,
 }
 

@@ -47,6 +47,7 @@ pub(crate) fn downsample_by(image: &GrayImage, columns: usize, rows: usize) -> G
                 (3, 3) => block_means::<3, 9>(sums, out, byte_scaled),
                 (4, 4) => block_means::<4, 16>(sums, out, byte_scaled),
                 (1, 2) => block_means::<1, 2>(sums, out, byte_scaled),
+                (2, 4) => block_means::<2, 8>(sums, out, byte_scaled),
                 _ => {
                     for (o, block) in out.iter_mut().zip(sums.chunks_exact(columns)) {
                         *o = block_mean(block.iter().sum(), columns * rows, byte_scaled);
@@ -489,18 +490,18 @@ mod tests {
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
 
-        /// Every factor, square or not (the rows alone halved included), 16-bit and 8-bit (×257)
-        /// samples: the rounded mean of each whole block, summed plainly.
+        /// Every pair of column and row factors (square, the rows alone, the rows twice the
+        /// columns' ...), 16-bit and 8-bit (×257) samples: the rounded mean of each whole block,
+        /// summed plainly.
         #[test]
-        fn downsample_is_the_rounded_block_mean(w in 1usize..40, h in 1usize..30, factor in 1usize..7, rows_only in proptest::prelude::any::<bool>(), bytes in proptest::prelude::any::<bool>(), seed in proptest::prelude::any::<u64>()) {
+        fn downsample_is_the_rounded_block_mean(w in 1usize..40, h in 1usize..30, fx in 1usize..7, fy in 1usize..7, bytes in proptest::prelude::any::<bool>(), seed in proptest::prelude::any::<u64>()) {
             let mut s = seed | 1;
             let mut next = move || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s };
             let image = GrayImage::from_fn(w, h, |_, _| {
                 let v = next() as u16;
                 if bytes { (v & 0xff) * 257 } else { v }
             });
-            let (fx, fy) = if rows_only { (1, factor) } else { (factor, factor) };
-            let small = if rows_only { downsample_by(&image, 1, factor) } else { downsample(&image, factor) };
+            let small = if fx == fy { downsample(&image, fx) } else { downsample_by(&image, fx, fy) };
             proptest::prop_assert_eq!(small.size(), (w / fx, h / fy));
             let n = (fx * fy) as u64;
             // (A small random 16-bit image can be ×257 throughout by chance.)

@@ -116,15 +116,24 @@ fn reduction(
             if params.range.count() < 2 {
                 return None;
             }
+            // Coarse where the range is too short to halve (again): the rows are halved once
+            // more than the columns (the disparities keep the matched pair's resolution).
+            let (width, height) = left.size();
+            let rows_halved_too = |f: usize| {
+                let (w, h) = (width / f, height / (2 * f));
+                params.downscale == Downscale::Coarse
+                    && params.range.count() / (2 * f) < COARSE_MIN_DISPARITIES
+                    && w * h >= COARSE_MIN_PIXELS
+                    && h >= params.census.height
+            };
             if let Some((f, l, r)) = halved_pair(left, right, params) {
+                if f == 2 && rows_halved_too(2) {
+                    drop((l, r));
+                    return Some(reduced((2, 4)));
+                }
                 return Some(((f, f), l, r));
             }
-            // Coarse where the range is too short to halve: the rows alone are halved (the
-            // disparities keep their resolution).
-            let (width, height) = left.size();
-            let short_range = params.range.count() / 2 < COARSE_MIN_DISPARITIES;
-            let rows_fit = height / 2 * width >= COARSE_MIN_PIXELS && height / 2 >= params.census.height;
-            (params.downscale == Downscale::Coarse && short_range && rows_fit).then(|| reduced((1, 2)))
+            rows_halved_too(1).then(|| reduced((1, 2)))
         }
     }
 }
@@ -918,9 +927,20 @@ mod tests {
         assert!(reduction(&sharp(160, 300), &sharp(160, 300), &coarse(31)).is_none());
         assert!(reduction(&pair, &pair, &SgmParams { downscale: Downscale::Auto, ..coarse(16) }).is_none());
         // Pairs Auto reduces are reduced alike.
+        // Halved, and the halved range (16) too short to halve again: the rows are halved once
+        // more, where 25 000 pixels remain (340 x 150); not with a range that halves twice.
+        let (large, large_right) =
+            (sharp(680, 600), GrayImage::from_fn(680, 600, |x, y| texture(x as i64 + 10, y as i64)));
+        assert!(
+            matches!(reduction(&large, &large, &coarse(32)), Some(((2, 4), l, _)) if l.size() == (340, 150))
+        );
+        assert!(matches!(reduction(&large, &large, &coarse(64)), Some(((2, 2), _, _))));
         let smooth = enlarged(800, 500, 0);
         assert!(
-            matches!(reduction(&smooth, &smooth, &coarse(32)), Some(((2, 2), l, _)) if l.size() == (400, 250))
+            matches!(reduction(&smooth, &smooth, &coarse(32)), Some(((2, 4), l, _)) if l.size() == (400, 125))
+        );
+        assert!(
+            matches!(reduction(&smooth, &smooth, &coarse(64)), Some(((2, 2), l, _)) if l.size() == (400, 250))
         );
         let smoother = enlarged_by(1600, 1000, 0, 8.0);
         assert!(matches!(reduction(&smoother, &smoother, &coarse(48)), Some(((3, 3), _, _))));
@@ -948,6 +968,14 @@ mod tests {
         let exact = rows.disparity.as_slice().iter().filter(|d| (*d - 10.0).abs() <= 0.25).count();
         assert!(exact > 340 * 300 / 2, "{exact}");
         assert!(!out.search.rows_halved);
+        // Halved with the rows halved again: full size, disparities as coarse as the halving's.
+        let both = sgm_detailed(&large, &large_right, &coarse(32)).unwrap();
+        assert_eq!(
+            (both.search.downscale, both.search.rows_halved, both.disparity.size()),
+            (2, true, (680, 600))
+        );
+        let near = both.disparity.as_slice().iter().filter(|d| (*d - 10.0).abs() <= 1.0).count();
+        assert!(near > 680 * 600 / 2, "{near}");
         assert_eq!(SgmParams::preset(crate::Preset::Fast).downscale, Downscale::Coarse);
     }
 

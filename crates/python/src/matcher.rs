@@ -49,8 +49,9 @@ use crate::input::{Input, View};
 ///   many times on each side, then bring the disparities back to full size (about downscale³ less
 ///   work, coarser disparities); "auto" halves it while both views hold no detail finer than 2 px,
 ///   sensor noise discounted (by 3 where it would halve twice); "coarse" as "auto", but sharp
-///   pairs are halved too where at least 16 disparities and 25 000 pixels remain (with fewer
-///   disparities, the rows alone where 25 000 pixels remain); 1: full resolution.
+///   pairs are halved too where at least 16 disparities and 25 000 pixels remain, and where the
+///   range is too short to halve (again) the rows once more (the rows alone, or by 4 after a
+///   halving) where 25 000 pixels remain; 1: full resolution.
 /// - ``p1`` [None: 20], ``p2`` [None: 80]: SGM penalties, in census bits.
 /// - ``uniqueness`` [None: 0 (sgm), 10 (bm)]: uniqueness margin, percent; 0 disables it.
 /// - ``lr_max_diff`` [None: 3 (sgm; 1 with fill), 1 (bm)]: left-right check tolerance, px.
@@ -567,7 +568,8 @@ pub fn to_numpy<T: numpy::Element + Copy>(py: Python<'_>, image: Image<T>) -> Bo
 /// - ``search``: dict ``search`` ("full" or "hierarchical", the coarse-to-fine search), ``levels``
 ///   (half-resolution levels below the full one), ``mean_disparities_searched`` per pixel (of the
 ///   matched pair), ``downscale`` (the factor the pair was reduced by; 1: full resolution) and
-///   ``rows_halved`` (the rows alone halved: "coarse" on a range too short to halve) (None for BM).
+///   ``rows_halved`` (the rows halved once more than the columns: "coarse" on a range too short
+///   to halve) (None for BM).
 /// - ``range``: (min, max) disparities searched, ``min <= d < max``.
 /// - ``copied``: (left, right): whether an input array had to be copied to be read.
 #[pyclass(frozen, get_all, module = "stereo_depth")]
