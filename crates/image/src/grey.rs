@@ -18,8 +18,9 @@ pub fn expand8(v: u8) -> u16 {
     v as u16 * 257
 }
 
-/// A pixel the matchers can take: its working 16-bit grey value (alpha ignored).
-pub trait ToGray16: Copy {
+/// A pixel the matchers can take: its working 16-bit grey value (alpha ignored). (`Sync`, so two
+/// views convert on two threads.)
+pub trait ToGray16: Copy + Sync {
     fn to_gray16(self) -> u16;
 }
 

@@ -68,7 +68,10 @@ impl Plan {
     ) -> Result<DepthResult, Error> {
         self.check_size(left.size())?;
         self.check_size(right.size())?;
-        self.run_gray(&left.to_gray16(), right.to_gray16())
+        // Both views at once: a colour view's conversion is a few ns per pixel (10 ms for a
+        // 1080p pair on one thread), a tenth of a fast match.
+        let (left, right) = rayon::join(|| left.to_gray16(), || right.to_gray16());
+        self.run_gray(&left, right)
     }
 
     /// Runs the pipeline on the matchers' working grey images (the right one may be resampled in

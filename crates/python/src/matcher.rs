@@ -538,13 +538,12 @@ impl Matcher {
     }
 }
 
-/// Both views as working grey images; files decode at once, as the command line does.
+/// Both views as working grey images, converted (or decoded) at once.
 fn convert(left: &View<'_>, right: &View<'_>, max_pixels: u64) -> PyResult<(GrayImage, GrayImage)> {
-    if matches!(left, View::Path(_)) && matches!(right, View::Path(_)) {
-        let (l, r) = rayon::join(|| left.to_gray(max_pixels), || right.to_gray(max_pixels));
-        return Ok((l?, r?));
-    }
-    Ok((left.to_gray(max_pixels)?, right.to_gray(max_pixels)?))
+    // Both at once: decoding a file, or converting a colour array (1.3 ms for a VGA RGB pair,
+    // 10 ms for 1080p on one thread: a tenth of a fast match).
+    let (l, r) = rayon::join(|| left.to_gray(max_pixels), || right.to_gray(max_pixels));
+    Ok((l?, r?))
 }
 
 /// An image as a 2-D numpy array, without copying its pixels.
