@@ -168,7 +168,7 @@ impl CoarseMatch {
         let (cw, ch) = self.left.size();
         let mut tiles: Vec<Vec<f32>> = vec![Vec::new(); 9];
         for ((x, y, _), s) in self.matches().zip(self.tone_samples()) {
-            let b = correction.map_or(s.right, |c| c.level(s.right, s.u, s.v));
+            let b = correction.map_or(s.right, |c| c.predicted_left(&s));
             tiles[(y * 3 / ch) * 3 + x * 3 / cw].push(s.left - b);
         }
         let mut medians = Vec::new();
@@ -182,12 +182,13 @@ impl CoarseMatch {
         medians.into_iter().max_by(f32::total_cmp)
     }
 
-    /// The matched pixels' grey levels (8-bit units), at their position in the right view
+    /// The matched pixels' grey levels (8-bit units), at their positions in both views
     /// (normalised: the coarse match stands for the full-resolution views).
     pub(crate) fn tone_samples(&self) -> impl Iterator<Item = ToneSample> + '_ {
         let (cw, ch) = self.left.size();
         self.matches().map(move |(x, y, xr)| ToneSample {
             u: (xr as f32 + 0.5) / cw as f32,
+            u_left: (x as f32 + 0.5) / cw as f32,
             v: (y as f32 + 0.5) / ch as f32,
             right: f32::from(self.right.get(xr, y)) / 257.0,
             left: f32::from(self.left.get(x, y)) / 257.0,
@@ -538,8 +539,9 @@ mod tests {
         assert!((i32::from(c.left.1 / 257) - 235).abs() <= 2, "{c:?}");
         assert_eq!(c.right, (0, u16::MAX));
         // Matched pixels decide the level where there are enough.
-        let samples: Vec<ToneSample> =
-            (0..40).map(|i| ToneSample { u: 0.5, v: 0.5, left: 30.0 + (i % 3) as f32, right: 0.0 }).collect();
+        let samples: Vec<ToneSample> = (0..40)
+            .map(|i| ToneSample { u: 0.5, u_left: 0.5, v: 0.5, left: 30.0 + (i % 3) as f32, right: 0.0 })
+            .collect();
         let c = Clipping::matching(&left, &right, &samples).expect("the right view is clipped");
         assert_eq!(c.left.0, 31 * 257);
         // Views clipped alike (or not at all) are left alone.

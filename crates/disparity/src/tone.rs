@@ -7,11 +7,13 @@ use rayon::prelude::*;
 
 use crate::GrayImage;
 
-/// One matched pixel pair, in 8-bit grey levels, at a position in the right view normalised to
-/// `0..1` (so that a coarse match fits the full-resolution view).
+/// One matched pixel pair, in 8-bit grey levels, at its positions in the right view (`u`, `v`)
+/// and in the left one (`u_left`, `v`), normalised to `0..1` (so that a coarse match fits the
+/// full-resolution views).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct ToneSample {
     pub u: f32,
+    pub u_left: f32,
     pub v: f32,
     pub right: f32,
     pub left: f32,
@@ -38,6 +40,16 @@ pub(crate) enum Vignetting {
     Radial { aspect: f32 },
 }
 
+/// The view whose vignetting the attenuation follows, over its own positions. Each lens darkens
+/// its own view's corners: an attenuation fitted over the right view's positions is off by each
+/// pixel's disparity where the left view is the vignetted one (wood2, 112 disparities in 653
+/// columns: bad2 20.0 against 13.9 with the right view vignetted alike; docs/robustness.md).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum AttenuatedView {
+    Left,
+    Right,
+}
+
 /// `left ≈ curve(right) / attenuation(u, v)`: the right view's tones mapped onto the left's. A
 /// vignetting attenuates the light towards the corners about quadratically in the distance from
 /// the centre, so the attenuation (not its inverse) is the quadratic surface.
@@ -46,13 +58,21 @@ pub(crate) struct ToneCorrection {
     /// The left view's level for each right-view level `0..=255`.
     curve: [f32; 256],
     /// The right view's attenuation relative to the left's, `c0 + c1·u + c2·v + c3·u² + c4·v² +
-    /// c5·u·v` (`u`, `v` centred, −0.5..0.5).
+    /// c5·u·v` (`u`, `v` centred, −0.5..0.5, positions in [`ToneCorrection::view`]).
     attenuation: [f32; 6],
+    /// Where the attenuation's positions lie; with [`AttenuatedView::Left`], [`ToneCorrection::apply`]
+    /// multiplies the left view by it instead of dividing the right one.
+    view: AttenuatedView,
 }
 
 impl ToneCorrection {
-    /// The correction fitted to `samples`; `None` when too few bins or tiles hold samples to fit.
-    pub(crate) fn fit(samples: &[ToneSample], vignetting: Option<Vignetting>) -> Option<Self> {
+    /// The correction fitted to `samples`, a vignetting (if any) over `view`'s positions; `None`
+    /// when too few bins or tiles hold samples to fit.
+    pub(crate) fn fit(
+        samples: &[ToneSample],
+        vignetting: Option<Vignetting>,
+        view: AttenuatedView,
+    ) -> Option<Self> {
         let samples: Vec<&ToneSample> =
             samples.iter().filter(|s| s.right.is_finite() && s.left.is_finite()).collect();
         if samples.len() < MIN_SAMPLES {
@@ -64,11 +84,12 @@ impl ToneCorrection {
         let mut correction = ToneCorrection {
             curve: std::array::from_fn(|i| i as f32),
             attenuation: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            view,
         };
-        let left = |c: &ToneCorrection| samples.iter().map(|s| s.left * c.attenuation(s.u, s.v)).collect();
+        let left = |c: &ToneCorrection| samples.iter().map(|s| s.left * c.attenuation_at(s)).collect();
         for _ in 0..if vignetting.is_some() { ROUNDS } else { 0 } {
             correction.curve = fit_curve(&right, left(&correction))?;
-            correction.attenuation = fit_attenuation(&samples, &correction.curve, vignetting?)?;
+            correction.attenuation = fit_attenuation(&samples, &correction.curve, vignetting?, view)?;
         }
         correction.curve = fit_curve(&right, left(&correction))?;
         Some(correction)
@@ -80,6 +101,37 @@ impl ToneCorrection {
         let g = &self.attenuation;
         // A wild fit far from the samples must not flip or zero the levels.
         (g[0] + g[1] * x + g[2] * y + g[3] * x * x + g[4] * y * y + g[5] * x * y).max(0.05)
+    }
+
+    /// The attenuation at a sample's position in [`ToneCorrection::view`].
+    fn attenuation_at(&self, s: &ToneSample) -> f32 {
+        self.attenuation(position(s, self.view), s.v)
+    }
+
+    /// The left view's level (8-bit units) the correction predicts for a sample's right level.
+    pub(crate) fn predicted_left(&self, s: &ToneSample) -> f32 {
+        (self.curve_at(s.right) / self.attenuation_at(s)).clamp(0.0, 255.0)
+    }
+
+    /// The median of `|predicted − left|` over the samples neither view holds clipped (8-bit
+    /// levels); `None` without such samples.
+    pub(crate) fn median_residual(&self, samples: &[ToneSample]) -> Option<f32> {
+        let unclipped = |l: f32| l > 2.0 && l < 253.0;
+        let mut residuals: Vec<f32> = samples
+            .iter()
+            .filter(|s| unclipped(s.right) && unclipped(s.left))
+            .map(|s| (self.predicted_left(s) - s.left).abs())
+            .collect();
+        let mid = residuals.len() / 2;
+        (!residuals.is_empty()).then(|| *residuals.select_nth_unstable_by(mid, f32::total_cmp).1)
+    }
+
+    /// The curve at a fractional right-view level (8-bit units).
+    fn curve_at(&self, level: f32) -> f32 {
+        let l = level.clamp(0.0, 255.0);
+        let i = (l as usize).min(254);
+        let t = l - i as f32;
+        self.curve[i] + t * (self.curve[i + 1] - self.curve[i])
     }
 
     /// The left view's level (8-bit units) for right-view level `level` at `(u, v)`.
@@ -111,30 +163,47 @@ impl ToneCorrection {
         points.iter().map(|p| (p.1 - my - slope * (p.0 - mx)).abs()).fold(0.0, f64::max) as f32
     }
 
-    /// The left view's level (8-bit units) for right-view level `level` at `(u, v)`.
-    pub(crate) fn level(&self, level: f32, u: f32, v: f32) -> f32 {
-        let l = level.clamp(0.0, 255.0);
-        let i = (l as usize).min(254);
-        let t = l - i as f32;
-        let c = self.curve[i] + t * (self.curve[i + 1] - self.curve[i]);
-        (c / self.attenuation(u, v)).clamp(0.0, 255.0)
-    }
-
-    /// `right` with every sample mapped by [`ToneCorrection::level`], in `right`'s scale (8-bit
+    /// The views as the intensity term compares them: the right one mapped by the curve onto the
+    /// left's tones, and the attenuation undone where it lies, dividing the right view or
+    /// multiplying the left one (`None`: the left view as given). Each in its own scale (8-bit
     /// levels stored ×257 stay so).
-    pub(crate) fn apply(&self, right: &GrayImage) -> GrayImage {
-        let (w, h) = right.size();
-        let byte_scaled = crate::census::is_byte_scaled(right);
-        let mut data = vec![0u16; w * h];
-        data.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-            let v = (y as f32 + 0.5) / h as f32;
-            for (x, (o, &r)) in out.iter_mut().zip(right.row(y)).enumerate() {
-                let l = self.level(f32::from(r) / 257.0, (x as f32 + 0.5) / w as f32, v);
-                *o = if byte_scaled { l.round() as u16 * 257 } else { (l * 257.0).round() as u16 };
+    pub(crate) fn apply(&self, left: &GrayImage, right: &GrayImage) -> (Option<GrayImage>, GrayImage) {
+        let in_right = self.view == AttenuatedView::Right;
+        let right = map_view(right, |level, u, v| {
+            let c = self.curve_at(level);
+            if in_right {
+                c / self.attenuation(u, v)
+            } else {
+                c
             }
         });
-        GrayImage::from_vec(w, h, data).expect("same size")
+        let left = (!in_right).then(|| map_view(left, |level, u, v| level * self.attenuation(u, v)));
+        (left, right)
     }
+}
+
+/// A sample's position along the rows in `view`.
+fn position(s: &ToneSample, view: AttenuatedView) -> f32 {
+    match view {
+        AttenuatedView::Left => s.u_left,
+        AttenuatedView::Right => s.u,
+    }
+}
+
+/// `image` with every sample mapped by `f(level, u, v)` (8-bit units, normalised position),
+/// clamped to `0..=255`, in `image`'s scale.
+fn map_view(image: &GrayImage, f: impl Fn(f32, f32, f32) -> f32 + Sync) -> GrayImage {
+    let (w, h) = image.size();
+    let byte_scaled = crate::census::is_byte_scaled(image);
+    let mut data = vec![0u16; w * h];
+    data.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+        let v = (y as f32 + 0.5) / h as f32;
+        for (x, (o, &r)) in out.iter_mut().zip(image.row(y)).enumerate() {
+            let l = f(f32::from(r) / 257.0, (x as f32 + 0.5) / w as f32, v).clamp(0.0, 255.0);
+            *o = if byte_scaled { l.round() as u16 * 257 } else { (l * 257.0).round() as u16 };
+        }
+    });
+    GrayImage::from_vec(w, h, data).expect("same size")
 }
 
 /// The 1st and the 99th percentile of the samples' right levels (whole levels, at least one apart).
@@ -212,7 +281,12 @@ fn fit_curve(right: &[f32], mut left: Vec<f32>) -> Option<[f32; 256]> {
 /// The attenuation: the median of `curve(right) / left` per tile of a [`GAIN_TILES`]² grid, then
 /// the quadratic surface through the tiles' medians (least squares weighted by their samples),
 /// scaled to 1 at the median tile. `None` when fewer than 6 tiles have samples.
-fn fit_attenuation(samples: &[&ToneSample], curve: &[f32; 256], model: Vignetting) -> Option<[f32; 6]> {
+fn fit_attenuation(
+    samples: &[&ToneSample],
+    curve: &[f32; 256],
+    model: Vignetting,
+    view: AttenuatedView,
+) -> Option<[f32; 6]> {
     let n = GAIN_TILES;
     let mut tiles: Vec<Vec<f32>> = vec![Vec::new(); n * n];
     // Each tile's sample positions summed: its median stands at their centroid, not at the tile's
@@ -222,9 +296,10 @@ fn fit_attenuation(samples: &[&ToneSample], curve: &[f32; 256], model: Vignettin
         // Clipped or nearly black samples say nothing about the attenuation.
         let c = curve[(s.right.round() as usize).min(255)];
         if s.right > 2.0 && s.right < 253.0 && s.left >= 16.0 {
-            let (tx, ty) = (((s.u * n as f32) as usize).min(n - 1), ((s.v * n as f32) as usize).min(n - 1));
+            let u = position(s, view);
+            let (tx, ty) = (((u * n as f32) as usize).min(n - 1), ((s.v * n as f32) as usize).min(n - 1));
             tiles[ty * n + tx].push(c / s.left);
-            centroids[ty * n + tx].0 += f64::from(s.u);
+            centroids[ty * n + tx].0 += f64::from(u);
             centroids[ty * n + tx].1 += f64::from(s.v);
         }
     }
@@ -325,7 +400,8 @@ mod tests {
                 let (u, v) = ((x as f32 + 0.5) / 60.0, (y as f32 + 0.5) / 40.0);
                 let h = (x as u32).wrapping_mul(2_654_435_761) ^ (y as u32).wrapping_mul(2_246_822_519);
                 let left = 10.0 + (h >> 8) as f32 % 236.0;
-                out.push(ToneSample { u, v, left, right: render(left, u, v).round().clamp(0.0, 255.0) });
+                let right = render(left, u, v).round().clamp(0.0, 255.0);
+                out.push(ToneSample { u, u_left: u, v, left, right });
             }
         }
         out
@@ -337,7 +413,7 @@ mod tests {
     fn worst_error(s: &[ToneSample], c: &ToneCorrection) -> f32 {
         s.iter()
             .filter(|s| s.right > 0.0 && s.right < 255.0)
-            .map(|s| (c.level(s.right, s.u, s.v) - s.left).abs())
+            .map(|s| (c.predicted_left(s) - s.left).abs())
             .fold(0.0, f32::max)
     }
 
@@ -346,12 +422,13 @@ mod tests {
         for render in [&(|l: f32, _, _| l * 0.6) as &dyn Fn(f32, f32, f32) -> f32, &|l, _, _| 0.8 * l + 40.0]
         {
             let s = samples(render);
-            let c = ToneCorrection::fit(&s, None).expect("enough samples");
+            let c = ToneCorrection::fit(&s, None, AttenuatedView::Right).expect("enough samples");
             // A right level stands for up to 1.7 left levels at gain 0.6.
             assert!(worst_error(&s, &c) < 2.0, "{}", worst_error(&s, &c));
             assert!(c.nonlinearity(&s) < 2.0, "{}", c.nonlinearity(&s));
         }
-        let c = ToneCorrection::fit(&samples(|l, _, _| l * 0.6), None).expect("enough samples");
+        let c = ToneCorrection::fit(&samples(|l, _, _| l * 0.6), None, AttenuatedView::Right)
+            .expect("enough samples");
         let expansion = c.expansion(&samples(|l, _, _| l * 0.6));
         assert!((expansion - 1.0 / 0.6).abs() < 0.2, "{expansion}");
     }
@@ -360,12 +437,12 @@ mod tests {
     fn a_gamma_is_undone_where_the_levels_allow_and_reads_as_curved() {
         for (gamma, curved) in [(2.0f32, 35.0), (0.5, 25.0)] {
             let s = samples(|l, _, _| 255.0 * (l / 255.0).powf(gamma));
-            let c = ToneCorrection::fit(&s, None).expect("enough samples");
+            let c = ToneCorrection::fit(&s, None, AttenuatedView::Right).expect("enough samples");
             // Above left level 60 a right level stands for at most 2 left levels.
             let worst = s
                 .iter()
                 .filter(|s| s.left > 60.0)
-                .map(|s| (c.level(s.right, s.u, s.v) - s.left).abs())
+                .map(|s| (c.predicted_left(s) - s.left).abs())
                 .fold(0.0, f32::max);
             assert!(worst < 3.0, "gamma {gamma}: {worst}");
             assert!(c.nonlinearity(&s) > curved, "gamma {gamma}: {}", c.nonlinearity(&s));
@@ -376,18 +453,20 @@ mod tests {
     fn vignetting_is_undone() {
         // 40 % fall-off at the corners, as `stereo-degrade` makes it.
         let s = samples(|l, u, v| l * (1.0 - 0.4 * ((u - 0.5).powi(2) + (v - 0.5).powi(2)) / 0.5));
-        let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic)).expect("enough samples");
+        let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic), AttenuatedView::Right)
+            .expect("enough samples");
         assert!(worst_error(&s, &c) < 3.0, "{}", worst_error(&s, &c));
         // A radial fall-off about the centre (the samples' grid is square in u, v).
-        let radial =
-            ToneCorrection::fit(&s, Some(Vignetting::Radial { aspect: 1.0 })).expect("enough samples");
+        let radial = ToneCorrection::fit(&s, Some(Vignetting::Radial { aspect: 1.0 }), AttenuatedView::Right)
+            .expect("enough samples");
         assert!(worst_error(&s, &radial) < 3.0, "{}", worst_error(&s, &radial));
         // The curve alone cannot follow it.
-        let curve_only = ToneCorrection::fit(&s, None).expect("enough samples");
+        let curve_only = ToneCorrection::fit(&s, None, AttenuatedView::Right).expect("enough samples");
         assert!(worst_error(&s, &curve_only) > 20.0, "{}", worst_error(&s, &curve_only));
         // The views alike: the identity, up to the fit.
         let s = samples(|l, _, _| l);
-        let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic)).expect("enough samples");
+        let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic), AttenuatedView::Right)
+            .expect("enough samples");
         assert!(worst_error(&s, &c) < 1.5, "{}", worst_error(&s, &c));
     }
 
@@ -402,30 +481,76 @@ mod tests {
                 let h = (x as u32).wrapping_mul(2_654_435_761) ^ (y as u32).wrapping_mul(2_246_822_519);
                 let left = 10.0 + (h >> 8) as f32 % 236.0;
                 let right = left * (1.0 - 0.4 * ((u - 0.5).powi(2) + (v - 0.5).powi(2)) / 0.5);
-                s.push(ToneSample { u, v, left, right: right.round() });
+                s.push(ToneSample { u, u_left: u, v, left, right: right.round() });
             }
         }
-        let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic)).expect("enough samples");
+        let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic), AttenuatedView::Right)
+            .expect("enough samples");
         // 22 grey levels with the medians at the tiles' centres.
         assert!(worst_error(&s, &c) < 2.0, "{}", worst_error(&s, &c));
     }
 
     #[test]
+    fn a_vignetted_left_view_is_fitted_over_its_own_positions() {
+        // The left view vignetted 40 % at the corners, the right one brighter by 1.3; each match
+        // lies 5–25 % of the width to the right in the left view (its disparity).
+        let mut s = Vec::new();
+        for (x, y) in (0..80).flat_map(|y| (0..120).map(move |x| (x, y))) {
+            let h = (x as u32).wrapping_mul(2_654_435_761) ^ (y as u32).wrapping_mul(2_246_822_519);
+            let (u, v) = ((x as f32 + 0.5) / 120.0, (y as f32 + 0.5) / 80.0);
+            let u_left = u + 0.05 + 0.2 * ((h >> 4) % 100) as f32 / 100.0;
+            if u_left >= 1.0 {
+                continue;
+            }
+            let surface = 10.0 + (h >> 8) as f32 % 180.0;
+            let left = surface * (1.0 - 0.4 * ((u_left - 0.5).powi(2) + (v - 0.5).powi(2)) / 0.5);
+            s.push(ToneSample { u, u_left, v, left: left.round(), right: (1.3 * surface).round() });
+        }
+        // The 90th percentile: the fit extrapolates into the left view's sparsely matched far
+        // corners either way.
+        let worst = |view| {
+            let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic), view).expect("enough samples");
+            let mut errors: Vec<f32> = s.iter().map(|t| (c.predicted_left(t) - t.left).abs()).collect();
+            let at = errors.len() * 9 / 10;
+            *errors.select_nth_unstable_by(at, f32::total_cmp).1
+        };
+        let (left, right) = (worst(AttenuatedView::Left), worst(AttenuatedView::Right));
+        // Measured: 1.6 against 4.5 grey levels.
+        assert!(left < 2.0, "left {left}");
+        assert!(right > 2.5 * left, "right {right}, left {left}");
+        // Applied, the left view is brightened towards its corners and the right one only mapped
+        // by the curve: the same surface (77 near the left's corner, at u 0.15, v 0.1: 100
+        // vignetted by 0.77) then reads alike in both views, there and at the centre.
+        let c = ToneCorrection::fit(&s, Some(Vignetting::Quadratic), AttenuatedView::Left).expect("fit");
+        let left_view =
+            GrayImage::from_fn(100, 60, |x, y| if (x, y) == (15, 6) { 77 * 257 } else { 100 * 257 });
+        let right_view = GrayImage::from_fn(100, 60, |_, _| 130 * 257);
+        let (corrected_left, corrected_right) = c.apply(&left_view, &right_view);
+        let corrected_left = corrected_left.expect("the left view carries the attenuation");
+        let (corner, centre) = (corrected_left.get(15, 6) / 257, corrected_left.get(50, 30) / 257);
+        let right_level = corrected_right.get(7, 7) / 257;
+        assert!(corner.abs_diff(right_level) <= 2, "corner {corner}, right {right_level}");
+        assert!(centre.abs_diff(right_level) <= 2, "centre {centre}, right {right_level}");
+    }
+
+    #[test]
     fn the_applied_correction_keeps_the_scale() {
-        let c = ToneCorrection::fit(&samples(|l, _, _| l * 0.5), None).expect("enough samples");
+        let c = ToneCorrection::fit(&samples(|l, _, _| l * 0.5), None, AttenuatedView::Right)
+            .expect("enough samples");
         let right = GrayImage::from_fn(16, 8, |x, _| (x as u16 * 8) * 257);
-        let out = c.apply(&right);
+        let (left, out) = c.apply(&right, &right);
+        assert!(left.is_none(), "no vignetting: the left view stays as given");
         assert!(out.as_slice().iter().all(|&v| v % 257 == 0));
         assert!((i32::from(out.get(15, 4) / 257) - 240).abs() <= 2, "{}", out.get(15, 4) / 257);
         // 16-bit views stay 16-bit.
         let deep = GrayImage::from_fn(16, 8, |x, _| x as u16 * 2000 + 7);
-        let out = c.apply(&deep);
+        let (_, out) = c.apply(&deep, &deep);
         assert!((f32::from(out.get(10, 4)) - 2.0 * 20007.0).abs() < 2.0 * 257.0, "{}", out.get(10, 4));
     }
 
     #[test]
     fn too_few_samples_fit_nothing() {
         let s = samples(|l, _, _| l);
-        assert!(ToneCorrection::fit(&s[..MIN_SAMPLES - 1], None).is_none());
+        assert!(ToneCorrection::fit(&s[..MIN_SAMPLES - 1], None, AttenuatedView::Right).is_none());
     }
 }
