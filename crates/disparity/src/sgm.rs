@@ -576,8 +576,9 @@ fn correct_tones(
 }
 
 /// A vignetting is fitted over the left view's positions where that leaves a median residual
-/// below this share of the right view's: 0.62 on wood2 with its left view vignetted 40 %, 0.96 or
-/// more on the 63 other gain, gamma, bias, vignetting and combined pairs of docs/robustness.md.
+/// below this share of the right view's: 0.62 on wood2 with its left view vignetted 40 %, 0.97 or
+/// more on the 44 other fitted gain, gamma, bias, vignetting and combined pairs of
+/// docs/robustness.md.
 const LEFT_VIGNETTING_RESIDUAL_RATIO: f32 = 0.8;
 
 /// The largest [`ToneCorrection::expansion`] accepted (gain 0.6 measures 1.7–1.9) …
