@@ -552,7 +552,7 @@ fn correct_tones(
             .filter_map(move |v| Some((v.is_some(), ToneCorrection::fit(samples, v, view)?)))
             .collect::<Vec<_>>()
     };
-    let (in_right, in_left) = (fits(AttenuatedView::Right), fits(AttenuatedView::Left));
+    let (in_right, in_left) = rayon::join(|| fits(AttenuatedView::Right), || fits(AttenuatedView::Left));
     let best_residual = |fits: &[(bool, ToneCorrection)]| {
         fits.iter().filter(|f| f.0).filter_map(|f| f.1.median_residual(samples)).min_by(f32::total_cmp)
     };
