@@ -529,10 +529,9 @@ pub(crate) struct Adapted {
 
 /// The right view with its tones mapped onto the left's ([`ToneCorrection`], fitted to the coarse
 /// match), the left view where the vignetting undone was its own, and the radiometric difference
-/// that remains; `None` where the fit fails or where the
-/// mapped view would mislead the intensity term: levels stretched apart by more than
-/// [`MAX_TONE_EXPANSION`] (its quantisation steps become false texture) or a strong gamma
-/// ([`MAX_TONE_NONLINEARITY`]).
+/// that remains; `None` where the fit fails or where the mapped view would mislead the intensity
+/// term: levels stretched apart by more than [`MAX_TONE_EXPANSION`] (its quantisation steps
+/// become false texture) or a strong gamma ([`MAX_TONE_NONLINEARITY`]).
 fn correct_tones(
     coarse: &CoarseMatch,
     samples: &[ToneSample],

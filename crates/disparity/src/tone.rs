@@ -134,7 +134,6 @@ impl ToneCorrection {
         self.curve[i] + t * (self.curve[i + 1] - self.curve[i])
     }
 
-    /// The left view's level (8-bit units) for right-view level `level` at `(u, v)`.
     /// The largest local slope of the curve between the 1st and the 99th percentile of the
     /// matched right levels (over [`STRETCH`]-level stretches): how much the correction stretches the right
     /// view's levels apart, and with them its quantisation steps and noise.
