@@ -486,7 +486,7 @@ pub(crate) fn adapt_to_pair(
     // across image edges keeps depth edges free. Measured better for the default output on noisy
     // and JPEG pairs, worse for the dense one and for a one-sided blur (docs/robustness.md).
     // Views clipped alike are flat wherever either view was clipped, weak texture of another
-    // kind: the same P2 carries the surface across it (measured better on 12 of the 16 clipped
+    // kind: the same P2 carries the surface across it (measured better on 13 of the 16 clipped
     // gain 1.6 and bias -40 pairs, with either view the clipped one; docs/robustness.md).
     let weak_texture = (census_smoothing || clipped.is_some()) && sharper_view_blur.is_none();
     if weak_texture && !params.fill && params.p2_edge_scale == 0 {
