@@ -364,11 +364,20 @@ pub(crate) fn sgm_reference_ad(
     let nd = params.range.count();
     let census_bits = (params.census.width * params.census.height - 1) as u32;
     let crate::sgm::Adapted {
-        params: adapted, census_left, census_right, matching_left, matching_right, ..
+        params: adapted,
+        census_left,
+        census_right,
+        matching_left,
+        matching_right,
+        sharpened_left,
+        ..
     } = crate::sgm::adapt_to_pair(left, right, params, census_transform);
     let params = &adapted;
-    let original_left = left;
-    let (left, right) = (matching_left.as_ref().unwrap_or(left), matching_right.as_ref().unwrap_or(right));
+    let edges_left = sharpened_left.as_ref().unwrap_or(left);
+    let (left, right) = (
+        matching_left.as_ref().or(sharpened_left.as_ref()).unwrap_or(left),
+        matching_right.as_ref().unwrap_or(right),
+    );
     let mut cost = vec![0u8; width * height * nd];
     hamming_cost_volume(&census_left, &census_right, params.range, census_bits, &mut cost);
     if let crate::MatchingCost::AdCensus { weight, cap } = params.matching_cost {
@@ -396,7 +405,7 @@ pub(crate) fn sgm_reference_ad(
     if params.median {
         disparity = crate::filter::median_3x3_reference(&disparity);
     }
-    crate::post::after_median(disparity, original_left, params).disparity
+    crate::post::after_median(disparity, edges_left, params).disparity
 }
 
 /// Measurement harness (not a check): runs the reference pipeline with an AD-census cost on
