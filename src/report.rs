@@ -252,6 +252,12 @@ pub struct AdaptationReport {
     /// Whether census compared smoothed views (Gaussian σ 1 px): residual above 8 or blockiness
     /// above 1.05.
     pub census_smoothing: bool,
+    /// A one-sided defocus: the softer view ("left" or "right") and the Gaussian σ (px) that
+    /// brings the other to its sharpness; a softer left view is sharpened before matching.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub defocused_view: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub defocus_sigma_px: Option<f32>,
     /// How much darker than the centre a neighbour had to be to set its census bit (8-bit grey
     /// levels): 1 where both views were smoothed for noise or JPEG, else 0.
     pub census_tolerance_grey: f32,
@@ -364,6 +370,10 @@ impl MatcherReport {
                     census_residual_bits: a.census_residual,
                     blockiness: a.blockiness,
                     census_smoothing: a.census_smoothing,
+                    defocused_view: a
+                        .relative_blur
+                        .map(|(left_sharper, _)| if left_sharper { "right" } else { "left" }),
+                    defocus_sigma_px: a.relative_blur.map(|(_, sigma)| sigma),
                     census_tolerance_grey: a.census_tolerance_grey(),
                     p1_used: a.p1,
                     p2_used: a.p2,
@@ -520,6 +530,13 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
             }
             (true, _) => format!("{penalties}, census on smoothed views"),
             (false, _) => penalties,
+        };
+        let penalties = match (a.defocused_view, a.defocus_sigma_px) {
+            (Some("left"), Some(s)) => {
+                format!("{penalties}, left view defocused (σ {s:.1} px) and sharpened")
+            }
+            (Some(view), Some(s)) => format!("{penalties}, {view} view defocused (σ {s:.1} px)"),
+            _ => penalties,
         };
         writeln!(out, "cost          {cost}, {penalties}")?;
     }

@@ -77,6 +77,11 @@ pub struct Adaptation {
     pub blockiness: Option<f32>,
     /// Whether census compared Gaussian-smoothed views (σ 1 px), for a high residual or JPEG blocks.
     pub census_smoothing: bool,
+    /// A one-sided defocus (one view's sharpness at least twice the other's): `(left view is the
+    /// sharper, σ px)` of the Gaussian blur that brings the sharper view to the other's
+    /// sharpness; a defocused left view is sharpened by an unsharp mask of that σ. `None` when
+    /// the views are about equally sharp (or not measured).
+    pub relative_blur: Option<(bool, f32)>,
     /// A one-sided defocus: `(left view is the sharper, σ px)` of the Gaussian blur the sharper
     /// view received before census, instead of the σ 1 smoothing of both views; `None` when the
     /// views are about equally sharp (or not measured).

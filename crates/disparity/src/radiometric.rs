@@ -611,4 +611,24 @@ mod tests {
         let brighter = GrayImage::from_fn(300, 240, |x, y| sharp.get(x, y) / 2 + 1000);
         assert_eq!(relative_blur(&sharp, &brighter), None);
     }
+
+    #[test]
+    fn the_unsharp_mask_steepens_a_blurred_edge_and_keeps_flat_areas() {
+        let step = GrayImage::from_fn(64, 8, |x, _| if x < 32 { 10_000 } else { 50_000 });
+        let soft = gaussian_blur(&step, 1.5);
+        let sharpened = unsharp_mask(&soft, 1.5);
+        let steepest = |image: &GrayImage| {
+            image.row(4).windows(2).map(|p| i32::from(p[1]) - i32::from(p[0])).max().unwrap()
+        };
+        // The blurred step rises about 10 400 from column 31 to 32; sharpened, 13 754.
+        assert!(steepest(&soft) < 11_000 && steepest(&sharpened) > 13_000, "{}", steepest(&sharpened));
+        // Far from the edge both sides keep their level.
+        assert_eq!((sharpened.get(2, 4), sharpened.get(61, 4)), (10_000, 50_000));
+        let bright = GrayImage::from_fn(64, 8, |x, _| if x < 32 { 0 } else { 65_535 });
+        let sharpened = unsharp_mask(&gaussian_blur(&bright, 1.5), 1.5);
+        // The overshoot beside a full-range edge is clipped, not wrapped round.
+        let row = sharpened.row(4);
+        assert!(row[..32].iter().all(|&v| v < 32_768) && row[32..].iter().all(|&v| v > 32_768));
+        assert_eq!((row.iter().min(), row.iter().max()), (Some(&0), Some(&65_535)));
+    }
 }

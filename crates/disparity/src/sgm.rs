@@ -19,6 +19,7 @@ use crate::{
     COARSE_MIN_PIXELS,
 };
 use rayon::prelude::*;
+use std::borrow::Cow;
 
 /// Semi-Global Matching of a rectified pair (Hirschmüller 2008) with census or AD-census costs
 /// ([`SgmParams::matching_cost`]).
@@ -451,32 +452,40 @@ pub(crate) fn adapt_to_pair(
     // single noisy pixels then flip fewer bits, block edges fade, and the two views' sharpness is
     // closer (docs/robustness.md).
     let census_smoothing = smooths_census(residual, blockiness);
+    // A one-sided defocus (JPEG blocks excepted: their views are equally sharp). A defocused left
+    // view is the reference, whose blur widens every edge the map is drawn on: it is sharpened
+    // at the measured blur, for census, the intensity term and the post-processing's edges
+    // (docs/robustness.md).
+    let relative_blur = (params.adapt_to_pair && !blockiness.is_some_and(|b| b > CLEAN_BLOCKINESS))
+        .then(|| crate::radiometric::relative_blur(left, right))
+        .flatten();
+    let sharpened_left = match relative_blur {
+        Some((false, sigma)) => Some(crate::radiometric::unsharp_mask(left, sigma)),
+        _ => None,
+    };
+    let matched = |sigma| sigma * crate::radiometric::MATCHED_BLUR_FRACTION;
     let mut sharper_view_blur = None;
-    let mut sharpened_left = None;
     let mut census_tolerance = 0;
     if census_smoothing {
-        // A one-sided defocus (no JPEG blocks, whose views are equally sharp): the sharper view is
-        // blurred to nearly match the other instead of both being smoothed (docs/robustness.md).
-        let relative_blur = (!blockiness.is_some_and(|b| b > CLEAN_BLOCKINESS))
-            .then(|| crate::radiometric::relative_blur(left, right))
-            .flatten();
-        sharper_view_blur = relative_blur
-            .map(|(left_sharper, sigma)| (left_sharper, sigma * crate::radiometric::MATCHED_BLUR_FRACTION));
+        // With a one-sided defocus, the sharper view is blurred to nearly match the other
+        // instead of both being smoothed (docs/robustness.md).
+        sharper_view_blur = relative_blur.map(|(left_sharper, sigma)| (left_sharper, matched(sigma)));
         let sigma = crate::radiometric::NOISY_CENSUS_SMOOTHING;
-        let matched = |sigma| sigma * crate::radiometric::MATCHED_BLUR_FRACTION;
         let (l, r) = match relative_blur {
-            Some((true, s)) => (crate::radiometric::gaussian_blur(left, matched(s)), right.clone()),
-            // A defocused left view is also the reference, whose blur widens every edge the map
-            // is drawn on: sharpened at the measured blur as well (bad2 of the seven scenes'
-            // left blur 1.5, default and `--fill`, summed 147.90 -> 136.56; docs/robustness.md).
-            Some((false, s)) => rayon::join(
-                || crate::radiometric::unsharp_mask(left, s),
-                || crate::radiometric::gaussian_blur(right, matched(s)),
+            Some((true, s)) => {
+                (Cow::Owned(crate::radiometric::gaussian_blur(left, matched(s))), Cow::Borrowed(right))
+            }
+            Some((false, s)) => (
+                Cow::Borrowed(sharpened_left.as_ref().unwrap_or(left)),
+                Cow::Owned(crate::radiometric::gaussian_blur(right, matched(s))),
             ),
-            None => rayon::join(
-                || crate::radiometric::gaussian_blur(left, sigma),
-                || crate::radiometric::gaussian_blur(right, sigma),
-            ),
+            None => {
+                let (l, r) = rayon::join(
+                    || crate::radiometric::gaussian_blur(left, sigma),
+                    || crate::radiometric::gaussian_blur(right, sigma),
+                );
+                (Cow::Owned(l), Cow::Owned(r))
+            }
         };
         // Both views smoothed for noise or JPEG: what differences of a grey level or less remain
         // are mostly noise, and in flat areas they gave the views unrelated bit strings. (A
@@ -488,9 +497,8 @@ pub(crate) fn adapt_to_pair(
             || census(&l, params.census, census_tolerance, &mut census_left),
             || census(&r, params.census, census_tolerance, &mut census_right),
         );
-        if relative_blur.is_some_and(|(left_sharper, _)| !left_sharper) {
-            sharpened_left = Some(l);
-        }
+    } else if let Some(sharpened) = &sharpened_left {
+        census(sharpened, params.census, 0, &mut census_left);
     }
     // The dense output's stricter left-right check and fill do better with the penalties of the
     // views census now compares, where one view was blurred to match the other
@@ -522,6 +530,7 @@ pub(crate) fn adapt_to_pair(
         census_residual: residual,
         blockiness,
         census_smoothing,
+        relative_blur,
         sharper_view_blur,
         census_tolerance,
         p1: adapted.p1,

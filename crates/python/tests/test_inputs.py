@@ -207,6 +207,21 @@ def test_noisy_pairs_take_an_edge_aware_p2_for_the_default_output(pair):
     assert f["census_smoothing"] and f["p2_edge_scale"] == 0 and f["p2"] >= 80 and a["p2"] == 2 * f["p2"]
 
 
+def test_a_defocused_view_is_reported(pair):
+    left, right = pair
+    clean = sd.Matcher(max_disparity=32).compute_detailed(left, right).adaptation
+    assert clean["defocused_view"] is None and clean["defocus_sigma"] is None
+    # The left view blurred (Gaussian σ 1.5 px, rows then columns): found and measured.
+    taps = np.exp(-np.arange(-5, 6) ** 2 / (2 * 1.5**2))
+    taps /= taps.sum()
+    blur = lambda v, axis: np.apply_along_axis(lambda line: np.convolve(np.pad(line, 5, mode="edge"), taps, "valid"), axis, v)
+    soft = [np.round(blur(blur(v.astype(np.float64), 1), 0)).astype(np.uint8) for v in pair]
+    a = sd.Matcher(max_disparity=32).compute_detailed(soft[0], right).adaptation
+    assert a["defocused_view"] == "left" and abs(a["defocus_sigma"] - 1.5) < 0.4, a
+    a = sd.Matcher(max_disparity=32).compute_detailed(left, soft[1]).adaptation
+    assert a["defocused_view"] == "right" and abs(a["defocus_sigma"] - 1.5) < 0.4, a
+
+
 def test_rectification_check_first_reuses_the_streams_alignment():
     left, right = scene(width=256, height=192, disparity=8)
     # The right view one row lower, as a drifted rectification leaves it.
