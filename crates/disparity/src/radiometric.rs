@@ -434,27 +434,16 @@ pub(crate) const MIN_SHARPNESS_RATIO: f64 = 2.0;
 /// more texture for census.
 pub(crate) const MATCHED_BLUR_FRACTION: f32 = 0.65;
 
-/// Sharpness that no gain or bias changes: over `tiles`, the mean squared gradient (forward
+/// Sharpness that no gain or bias changes: over tiles, the mean squared gradient (forward
 /// differences) over the mean within-tile grey-level variance, away from a 6 px margin of each
-/// tile (where a blur of the tile reads its replicated border). 0 for flat tiles.
-fn sharpness(tiles: &[GrayImage]) -> f64 {
-    let m = 6;
+/// tile (where a blur of the tile reads its replicated border). 0 for flat tiles. The tiles are
+/// given by their [`tile_sums`].
+fn sharpness(tiles: impl Iterator<Item = TileSums>) -> f64 {
     let (mut g, mut v2, mut n) = (0f64, 0f64, 0f64);
-    for image in tiles {
-        let (w, h) = image.size();
-        let (mut s, mut s2, mut k) = (0f64, 0f64, 0f64);
-        for y in m..h.saturating_sub(m) {
-            let (row, below) = (image.row(y), image.row(y + 1));
-            for x in m..w.saturating_sub(m) {
-                let v = f64::from(row[x]);
-                let dx = f64::from(row[x + 1]) - v;
-                let dy = f64::from(below[x]) - v;
-                g += dx * dx + dy * dy;
-                s += v;
-                s2 += v * v;
-                k += 1.0;
-            }
-        }
+    for TileSums { gradient, sum, sum_sq, count } in tiles {
+        // Integer sums below 2^53 convert exactly.
+        let (s, s2, k) = (sum as f64, sum_sq as f64, count as f64);
+        g += gradient as f64;
         if k > 0.0 {
             v2 += s2 - s * s / k;
             n += k;
@@ -467,6 +456,34 @@ fn sharpness(tiles: &[GrayImage]) -> f64 {
     }
 }
 
+/// One tile's sums for [`sharpness`]: squared forward differences, samples, squared samples and
+/// their count.
+#[derive(Clone, Copy)]
+struct TileSums {
+    gradient: u64,
+    sum: u64,
+    sum_sq: u64,
+    count: u64,
+}
+
+/// [`TileSums`] of the `t`×`t` tile of `image` at `(x0, y0)`, read in place.
+fn tile_sums(image: &GrayImage, x0: usize, y0: usize, t: usize) -> TileSums {
+    let m = 6;
+    let mut sums = TileSums { gradient: 0, sum: 0, sum_sq: 0, count: 0 };
+    for y in m..t.saturating_sub(m) {
+        let (row, below) = (&image.row(y0 + y)[x0..x0 + t], &image.row(y0 + y + 1)[x0..x0 + t]);
+        for x in m..t.saturating_sub(m) {
+            let v = i64::from(row[x]);
+            let (dx, dy) = (i64::from(row[x + 1]) - v, i64::from(below[x]) - v);
+            sums.gradient += (dx * dx + dy * dy) as u64;
+            sums.sum += v as u64;
+            sums.sum_sq += (v * v) as u64;
+            sums.count += 1;
+        }
+    }
+    sums
+}
+
 /// A one-sided defocus: when one view's [`sharpness`] exceeds the other's by
 /// [`MIN_SHARPNESS_RATIO`] or more, which view is sharper (`true`: the left) and the Gaussian σ
 /// (px) that brings it to the other's sharpness, found by bisection on a 3×3 grid of 80×80 px
@@ -477,26 +494,22 @@ pub(crate) fn relative_blur(left: &GrayImage, right: &GrayImage) -> Option<(bool
     if t < 24 {
         return None;
     }
-    let tiles = |image: &GrayImage| -> Vec<GrayImage> {
-        (0..9)
-            .map(|i| {
-                let (x0, y0) = ((i % 3) * (w - t) / 2, (i / 3) * (h - t) / 2);
-                GrayImage::from_fn(t, t, |x, y| image.get(x0 + x, y0 + y))
-            })
-            .collect()
-    };
-    let (l, r) = (tiles(left), tiles(right));
-    let (sl, sr) = (sharpness(&l), sharpness(&r));
+    let corners = (0..9).map(|i| ((i % 3) * (w - t) / 2, (i / 3) * (h - t) / 2));
+    // Measured in place: most pairs stop at the ratio, and copies cost more than the sums.
+    let sl = sharpness(corners.clone().map(|(x0, y0)| tile_sums(left, x0, y0, t)));
+    let sr = sharpness(corners.clone().map(|(x0, y0)| tile_sums(right, x0, y0, t)));
     if sl <= 0.0 || sr <= 0.0 || sl.max(sr) / sl.min(sr) < MIN_SHARPNESS_RATIO {
         return None;
     }
-    let (left_sharper, sharp, target) = if sl > sr { (true, &l, sr) } else { (false, &r, sl) };
+    let (left_sharper, sharp, target) = if sl > sr { (true, left, sr) } else { (false, right, sl) };
+    let tiles: Vec<GrayImage> =
+        corners.map(|(x0, y0)| GrayImage::from_fn(t, t, |x, y| sharp.get(x0 + x, y0 + y))).collect();
     // Sharpness falls monotonically with σ.
     let (mut lo, mut hi) = (0.0f32, 4.0f32);
     for _ in 0..6 {
         let mid = 0.5 * (lo + hi);
-        let blurred: Vec<GrayImage> = sharp.iter().map(|tile| gaussian_blur(tile, mid)).collect();
-        if sharpness(&blurred) > target {
+        let blurred = tiles.iter().map(|tile| tile_sums(&gaussian_blur(tile, mid), 0, 0, t));
+        if sharpness(blurred) > target {
             lo = mid;
         } else {
             hi = mid;

@@ -400,10 +400,13 @@ pub(crate) fn adapt_to_pair(
     let mut census_left = Image::new(width, height, 0u64);
     let mut census_right = Image::new(width, height, 0u64);
     // The census of the views as given (the pair's noise is measured on them: clipped alike, the
-    // flat areas would match perfectly and hide it) beside the coarse match, which is too small
-    // to keep both threads busy.
-    let (coarse, _) = rayon::join(
-        || params.adapt_to_pair.then(|| CoarseMatch::new(left, right, params, sgm)).flatten(),
+    // flat areas would match perfectly and hide it) beside the coarse match and the views'
+    // relative blur, which are too small to keep both threads busy.
+    let ((coarse, input_blur), _) = rayon::join(
+        || {
+            let coarse = params.adapt_to_pair.then(|| CoarseMatch::new(left, right, params, sgm)).flatten();
+            (coarse, params.adapt_to_pair.then(|| crate::radiometric::relative_blur(left, right)).flatten())
+        },
         || {
             rayon::join(
                 || census(left, params.census, 0, &mut census_left),
@@ -456,9 +459,11 @@ pub(crate) fn adapt_to_pair(
     // view is the reference, whose blur widens every edge the map is drawn on: it is sharpened
     // at the measured blur, for census, the intensity term and the post-processing's edges
     // (docs/robustness.md).
-    let relative_blur = (params.adapt_to_pair && !blockiness.is_some_and(|b| b > CLEAN_BLOCKINESS))
-        .then(|| crate::radiometric::relative_blur(left, right))
-        .flatten();
+    let relative_blur = match clipped {
+        _ if blockiness.is_some_and(|b| b > CLEAN_BLOCKINESS) => None,
+        Some(_) => crate::radiometric::relative_blur(left, right),
+        None => input_blur,
+    };
     let sharpened_left = match relative_blur {
         Some((false, sigma)) => Some(crate::radiometric::unsharp_mask(left, sigma)),
         _ => None,
