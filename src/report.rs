@@ -524,12 +524,13 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
         } else {
             penalties
         };
-        let penalties = match (a.census_smoothing, a.census_tolerance_grey) {
-            (true, t) if t > 0.0 => {
+        let penalties = match (a.census_smoothing, a.census_tolerance_grey, a.defocused_view) {
+            (true, t, None) if t > 0.0 => {
                 format!("{penalties}, census on smoothed views (tolerance {t} grey level)")
             }
-            (true, _) => format!("{penalties}, census on smoothed views"),
-            (false, _) => penalties,
+            (true, _, None) => format!("{penalties}, census on smoothed views"),
+            (true, _, Some(_)) => format!("{penalties}, census with the sharper view blurred to match"),
+            (false, _, _) => penalties,
         };
         let penalties = match (a.defocused_view, a.defocus_sigma_px) {
             (Some("left"), Some(s)) => {
