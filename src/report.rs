@@ -370,10 +370,8 @@ impl MatcherReport {
                     census_residual_bits: a.census_residual,
                     blockiness: a.blockiness,
                     census_smoothing: a.census_smoothing,
-                    defocused_view: a
-                        .relative_blur
-                        .map(|(left_sharper, _)| if left_sharper { "right" } else { "left" }),
-                    defocus_sigma_px: a.relative_blur.map(|(_, sigma)| sigma),
+                    defocused_view: a.defocused_view().map(|(view, _)| view),
+                    defocus_sigma_px: a.defocused_view().map(|(_, sigma)| sigma),
                     census_tolerance_grey: a.census_tolerance_grey(),
                     p1_used: a.p1,
                     p2_used: a.p2,

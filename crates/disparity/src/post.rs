@@ -103,6 +103,12 @@ impl Adaptation {
     pub fn census_tolerance_grey(&self) -> f32 {
         f32::from(self.census_tolerance) / 257.0
     }
+
+    /// [`Adaptation::relative_blur`] as the defocused (softer) view, `"left"` or `"right"`, and
+    /// the σ (px) between the views.
+    pub fn defocused_view(&self) -> Option<(&'static str, f32)> {
+        self.relative_blur.map(|(left_sharper, sigma)| (if left_sharper { "right" } else { "left" }, sigma))
+    }
 }
 
 impl SgmOutput {

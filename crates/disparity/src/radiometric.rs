@@ -458,7 +458,6 @@ fn sharpness(tiles: impl Iterator<Item = TileSums>) -> f64 {
 
 /// One tile's sums for [`sharpness`]: squared forward differences, samples, squared samples and
 /// their count.
-#[derive(Clone, Copy)]
 struct TileSums {
     gradient: u64,
     sum: u64,

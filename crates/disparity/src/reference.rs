@@ -363,21 +363,10 @@ pub(crate) fn sgm_reference_ad(
     let (width, height) = left.size();
     let nd = params.range.count();
     let census_bits = (params.census.width * params.census.height - 1) as u32;
-    let crate::sgm::Adapted {
-        params: adapted,
-        census_left,
-        census_right,
-        matching_left,
-        matching_right,
-        sharpened_left,
-        ..
-    } = crate::sgm::adapt_to_pair(left, right, params, census_transform);
+    let crate::sgm::Adapted { params: adapted, census_left, census_right, views, .. } =
+        crate::sgm::adapt_to_pair(left, right, params, census_transform);
     let params = &adapted;
-    let edges_left = sharpened_left.as_ref().unwrap_or(left);
-    let (left, right) = (
-        matching_left.as_ref().or(sharpened_left.as_ref()).unwrap_or(left),
-        matching_right.as_ref().unwrap_or(right),
-    );
+    let (left, right, edges_left) = views.resolve(left, right);
     let mut cost = vec![0u8; width * height * nd];
     hamming_cost_volume(&census_left, &census_right, params.range, census_bits, &mut cost);
     if let crate::MatchingCost::AdCensus { weight, cap } = params.matching_cost {

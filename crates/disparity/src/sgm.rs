@@ -52,22 +52,12 @@ fn sgm_on_pool_thread(left: &GrayImage, right: &GrayImage, params: &SgmParams) -
         });
     }
     crate::check_range(&params.range, width)?;
-    let Adapted {
-        params: adapted,
-        census_left,
-        census_right,
-        matching_left,
-        matching_right,
-        sharpened_left,
-        adaptation,
-    } = adapt_to_pair(left, right, params, census_transform_tolerant);
+    let Adapted { params: adapted, census_left, census_right, views, adaptation } =
+        adapt_to_pair(left, right, params, census_transform_tolerant);
     let params = &adapted;
 
     memory::plan(width, height, params).check(width, height, params)?;
-    let (matching_left, matching_right) = (
-        matching_left.as_ref().or(sharpened_left.as_ref()).unwrap_or(left),
-        matching_right.as_ref().unwrap_or(right),
-    );
+    let (matching_left, matching_right, edges_left) = views.resolve(left, right);
     let (disparity, search) =
         match_census(matching_left, matching_right, &census_left, &census_right, params);
     let confidence = params.confidence.then(|| {
@@ -76,7 +66,7 @@ fn sgm_on_pool_thread(left: &GrayImage, right: &GrayImage, params: &SgmParams) -
     });
     drop((census_left, census_right));
 
-    let mut output = crate::post::finish(disparity, sharpened_left.as_ref().unwrap_or(left), params);
+    let mut output = crate::post::finish(disparity, edges_left, params);
     if let Some(mut confidence) = confidence {
         // Pixels the post-processing invalidated or filled were not matched: no confidence.
         for ((c, &status), d) in confidence
@@ -546,15 +536,8 @@ pub(crate) fn adapt_to_pair(
         Some((l, r)) => (Some(l), Some(corrected_right.unwrap_or(r))),
         None => (corrected_left, corrected_right),
     };
-    Adapted {
-        params: adapted,
-        census_left,
-        census_right,
-        matching_left,
-        matching_right,
-        sharpened_left,
-        adaptation,
-    }
+    let views = AdaptedViews { left: matching_left, right: matching_right, sharpened_left };
+    Adapted { params: adapted, census_left, census_right, views, adaptation }
 }
 
 /// What [`adapt_to_pair`] makes of the pair.
@@ -562,16 +545,38 @@ pub(crate) struct Adapted {
     pub(crate) params: SgmParams,
     pub(crate) census_left: Image<u64>,
     pub(crate) census_right: Image<u64>,
-    /// The views the matcher compares where they are not the input views: clipped alike
-    /// ([`crate::radiometric::Clipping`]), the right one's tones mapped onto the left's and a
-    /// vignetting undone in either ([`ToneCorrection`]); `None`: the view as given.
-    pub(crate) matching_left: Option<GrayImage>,
-    pub(crate) matching_right: Option<GrayImage>,
-    /// The left view sharpened where it is the defocused one of a one-sided blur
-    /// ([`crate::radiometric::unsharp_mask`]): matched where `matching_left` is `None`, and the
-    /// view whose edges the post-processing follows.
-    pub(crate) sharpened_left: Option<GrayImage>,
+    pub(crate) views: AdaptedViews,
     pub(crate) adaptation: Adaptation,
+}
+
+/// The views [`adapt_to_pair`] made in place of the input views; `None`: the view as given.
+pub(crate) struct AdaptedViews {
+    /// The views the matcher compares: clipped alike ([`crate::radiometric::Clipping`]), the
+    /// right one's tones mapped onto the left's and a vignetting undone in either
+    /// ([`ToneCorrection`]).
+    left: Option<GrayImage>,
+    right: Option<GrayImage>,
+    /// The left view sharpened where it is the defocused one of a one-sided blur
+    /// ([`crate::radiometric::unsharp_mask`]): matched where `left` is `None`, and the view whose
+    /// edges the post-processing follows.
+    sharpened_left: Option<GrayImage>,
+}
+
+impl AdaptedViews {
+    /// The left and right views to match, and the left view whose edges the post-processing
+    /// follows, given the input views.
+    pub(crate) fn resolve<'a>(
+        &'a self,
+        left: &'a GrayImage,
+        right: &'a GrayImage,
+    ) -> (&'a GrayImage, &'a GrayImage, &'a GrayImage) {
+        let sharpened = self.sharpened_left.as_ref();
+        (
+            self.left.as_ref().or(sharpened).unwrap_or(left),
+            self.right.as_ref().unwrap_or(right),
+            sharpened.unwrap_or(left),
+        )
+    }
 }
 
 /// The right view with its tones mapped onto the left's ([`ToneCorrection`], fitted to the coarse

@@ -338,10 +338,8 @@ impl Matcher {
                 d.set_item("census_residual", a.census_residual)?;
                 d.set_item("blockiness", a.blockiness)?;
                 d.set_item("census_smoothing", a.census_smoothing)?;
-                let defocused =
-                    a.relative_blur.map(|(left_sharper, _)| if left_sharper { "right" } else { "left" });
-                d.set_item("defocused_view", defocused)?;
-                d.set_item("defocus_sigma", a.relative_blur.map(|(_, sigma)| sigma))?;
+                d.set_item("defocused_view", a.defocused_view().map(|(view, _)| view))?;
+                d.set_item("defocus_sigma", a.defocused_view().map(|(_, sigma)| sigma))?;
                 d.set_item("census_tolerance", a.census_tolerance_grey())?;
                 d.set_item("p1", a.p1)?;
                 d.set_item("p2", a.p2)?;
