@@ -1,9 +1,19 @@
-//! Large zero-initialised working buffers. On Linux they are anonymous mappings advised to use
-//! transparent huge pages, so a multi-hundred-megabyte aggregation volume costs a few hundred
-//! page faults instead of tens of thousands; elsewhere (or if the mapping fails) a `Vec`.
+//! Large working buffers whose every entry is written before it is read (the aggregation volume,
+//! the strip's kept costs). On Linux they are anonymous mappings advised to use transparent huge
+//! pages, so a multi-hundred-megabyte aggregation volume costs a few hundred page faults instead
+//! of tens of thousands; elsewhere (or if the mapping fails) a zeroed `Vec`.
+//!
+//! A freed mapping is kept (up to [`KEPT_BYTES`] in all) for the next call's buffers: a matcher
+//! called again in the same process (a batch, a Python loop, a video stream) then neither faults
+//! its volume in nor has the kernel zero it, as OpenCV's matchers keep their buffers between calls
+//! (docs/perf-notes.md).
 
-/// A zero-initialised `[T]` of plain integers, freed on drop.
-pub(crate) struct ZeroedBuffer<T: Copy> {
+#[cfg(target_os = "linux")]
+use std::sync::Mutex;
+
+/// A `[T]` of plain integers, freed (or kept for reuse) on drop. Its contents are unspecified: zero
+/// when fresh, what its last user wrote when reused.
+pub(crate) struct ScratchBuffer<T: Copy> {
     ptr: *mut T,
     len: usize,
     /// Bytes mapped, or 0 when the memory belongs to `fallback`.
@@ -12,19 +22,74 @@ pub(crate) struct ZeroedBuffer<T: Copy> {
 }
 
 // SAFETY: the buffer owns its memory exclusively, like a `Vec<T>`.
-unsafe impl<T: Copy + Send> Send for ZeroedBuffer<T> {}
+unsafe impl<T: Copy + Send> Send for ScratchBuffer<T> {}
 // SAFETY: shared access only reads, like `&[T]`.
-unsafe impl<T: Copy + Sync> Sync for ZeroedBuffer<T> {}
+unsafe impl<T: Copy + Sync> Sync for ScratchBuffer<T> {}
 
-/// Below this size the page-fault saving is not worth a system call.
-const MAP_THRESHOLD: usize = 4 << 20;
+/// Smaller buffers come from the allocator (tiny pairs: not worth a system call).
+const MAP_THRESHOLD: usize = 1 << 20;
 
-impl<T: Copy + Default> ZeroedBuffer<T> {
-    /// `len` zero values; `T` must be an integer type (all-zero bytes is its zero).
+/// Freed mappings kept for reuse, in bytes at most: the default strip volume and its kept costs
+/// (16 MiB each, `memory::DEFAULT_STRIP_BYTES`) for two pairs matched at once. Larger mappings
+/// (a volume sized by `--max-memory` for a huge pair) go back to the system.
+const KEPT_BYTES: usize = 64 << 20;
+
+/// A kept mapping: its address and length in bytes.
+#[cfg(target_os = "linux")]
+struct Mapping {
+    addr: usize,
+    bytes: usize,
+}
+
+/// The kept mappings, oldest first.
+#[cfg(target_os = "linux")]
+static KEPT: Mutex<Vec<Mapping>> = Mutex::new(Vec::new());
+
+/// A kept mapping of at least `bytes` (and at most twice that, so a small buffer does not pin a
+/// large one), the smallest such. Without one the kept mappings are returned to the system (the
+/// pairs' sizes changed): memory kept idle never adds to a call's peak.
+#[cfg(target_os = "linux")]
+fn take_kept(bytes: usize) -> Option<Mapping> {
+    let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
+    let fitting = kept
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.bytes >= bytes && m.bytes / 2 <= bytes)
+        .min_by_key(|(_, m)| m.bytes)
+        .map(|(i, _)| i);
+    match fitting {
+        Some(i) => Some(kept.remove(i)),
+        None => {
+            for m in kept.drain(..) {
+                // SAFETY: a mapping made in `ScratchBuffer::new` that no buffer holds any more.
+                unsafe { libc::munmap(m.addr as *mut libc::c_void, m.bytes) };
+            }
+            None
+        }
+    }
+}
+
+/// Keeps `mapping` for reuse, returning the oldest kept ones to the system past [`KEPT_BYTES`].
+#[cfg(target_os = "linux")]
+fn keep(mapping: Mapping) {
+    let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
+    kept.push(mapping);
+    while kept.iter().map(|m| m.bytes).sum::<usize>() > KEPT_BYTES {
+        let oldest = kept.remove(0);
+        // SAFETY: a mapping made in `ScratchBuffer::new` that no buffer holds any more.
+        unsafe { libc::munmap(oldest.addr as *mut libc::c_void, oldest.bytes) };
+    }
+}
+
+impl<T: Copy + Default> ScratchBuffer<T> {
+    /// `len` values; `T` must be an integer type (every bit pattern is a value).
     pub(crate) fn new(len: usize) -> Self {
         let bytes = len.checked_mul(std::mem::size_of::<T>()).expect("buffer size overflows usize");
         #[cfg(target_os = "linux")]
         if bytes >= MAP_THRESHOLD {
+            if let Some(m) = take_kept(bytes) {
+                return Self::mapped(m.addr as *mut T, len, m.bytes);
+            }
             // SAFETY: an anonymous private mapping has no preconditions; the result is checked.
             let ptr = unsafe {
                 libc::mmap(
@@ -39,29 +104,48 @@ impl<T: Copy + Default> ZeroedBuffer<T> {
             if ptr != libc::MAP_FAILED {
                 // SAFETY: advice on our own fresh mapping; failure is harmless (4 KiB pages).
                 unsafe { libc::madvise(ptr, bytes, libc::MADV_HUGEPAGE) };
-                return ZeroedBuffer { ptr: ptr.cast(), len, mapped: bytes, fallback: Vec::new() };
+                return Self::mapped(ptr.cast(), len, bytes);
             }
         }
         let mut fallback = vec![T::default(); len];
-        ZeroedBuffer { ptr: fallback.as_mut_ptr(), len, mapped: 0, fallback }
+        Self::garbled(ScratchBuffer { ptr: fallback.as_mut_ptr(), len, mapped: 0, fallback })
+    }
+
+    fn mapped(ptr: *mut T, len: usize, bytes: usize) -> Self {
+        Self::garbled(ScratchBuffer { ptr, len, mapped: bytes, fallback: Vec::new() })
+    }
+
+    /// Debug builds (the tests) start every buffer with garbage, so that an entry read before it
+    /// is written gives another map than the scalar reference's.
+    fn garbled(mut buffer: Self) -> Self {
+        if cfg!(debug_assertions) {
+            let s = buffer.as_mut_slice();
+            // SAFETY: `T` is a plain integer (see `new`): any bytes are one of its values.
+            unsafe { std::ptr::write_bytes(s.as_mut_ptr(), 0xA5, s.len()) };
+        }
+        buffer
     }
 
     pub(crate) fn as_mut_slice(&mut self) -> &mut [T] {
         if self.mapped == 0 {
             return &mut self.fallback;
         }
-        // SAFETY: `ptr` is a live mapping of `len` zero-initialised (then only integer-written)
-        // values of `T`, page aligned, and `&mut self` makes this borrow exclusive.
+        // SAFETY: `ptr` is a live mapping of `len` values of `T` (zero-initialised by the system,
+        // then only integer-written), page aligned, and `&mut self` makes this borrow exclusive.
         unsafe { std::slice::from_raw_parts_mut(self.ptr, self.len) }
     }
 }
 
-impl<T: Copy> Drop for ZeroedBuffer<T> {
+impl<T: Copy> Drop for ScratchBuffer<T> {
     fn drop(&mut self) {
         #[cfg(target_os = "linux")]
         if self.mapped > 0 {
-            // SAFETY: unmapping exactly the mapping made in `new`, which no borrow outlives.
-            unsafe { libc::munmap(self.ptr.cast(), self.mapped) };
+            if self.mapped <= KEPT_BYTES {
+                keep(Mapping { addr: self.ptr as usize, bytes: self.mapped });
+            } else {
+                // SAFETY: unmapping exactly the mapping made in `new`, which no borrow outlives.
+                unsafe { libc::munmap(self.ptr.cast(), self.mapped) };
+            }
         }
     }
 }
@@ -71,14 +155,25 @@ mod tests {
     use super::*;
 
     #[test]
-    fn buffers_start_zeroed_and_are_writable() {
-        for len in [0usize, 10, (MAP_THRESHOLD / 2) + 7] {
-            let mut b = ZeroedBuffer::<u16>::new(len);
-            let s = b.as_mut_slice();
-            assert_eq!(s.len(), len);
-            assert!(s.iter().all(|&v| v == 0));
-            s.iter_mut().enumerate().for_each(|(i, v)| *v = i as u16);
-            assert!(s.iter().enumerate().all(|(i, &v)| v == i as u16));
+    fn buffers_have_their_length_and_are_writable() {
+        for len in [0usize, 10, (MAP_THRESHOLD / 2) + 7, MAP_THRESHOLD * 2] {
+            for _ in 0..2 {
+                // The second time round, possibly the mapping the first one kept.
+                let mut b = ScratchBuffer::<u16>::new(len);
+                let s = b.as_mut_slice();
+                assert_eq!(s.len(), len);
+                s.iter_mut().enumerate().for_each(|(i, v)| *v = i as u16);
+                assert!(s.iter().enumerate().all(|(i, &v)| v == i as u16));
+            }
         }
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn freed_mappings_are_kept_within_the_bound() {
+        let many: Vec<_> = (0..6).map(|_| ScratchBuffer::<u32>::new(KEPT_BYTES / 16)).collect();
+        drop(many);
+        let kept = KEPT.lock().unwrap();
+        assert!(kept.iter().map(|m| m.bytes).sum::<usize>() <= KEPT_BYTES);
     }
 }

@@ -1,7 +1,7 @@
 //! Semi-Global Matching: census (or AD-census) costs, path aggregation, winner-takes-all, checks.
 
 use crate::aggregate::{aggregate_and_select, stream_and_select, Inputs, P2Table, MAX_P2};
-use crate::buffer::ZeroedBuffer;
+use crate::buffer::ScratchBuffer;
 use crate::census::census_transform_tolerant;
 use crate::confidence::census_confidence;
 use crate::cost::infeasible_cost;
@@ -857,10 +857,10 @@ pub(crate) fn aggregate_census(
         // The only volume: one strip of aggregated path costs (every entry is written before it
         // is read, and the strips reuse it).
         let rows = plan.strips.rows.min(height);
-        let mut volume = ZeroedBuffer::<u16>::new(rows * width * nd);
+        let mut volume = ScratchBuffer::<u16>::new(rows * width * nd);
         // The strip rows' matching costs, kept for the second pass (if the plan shares them).
         let cost_len = if plan.strips.shared_costs { rows * width * padded_lanes(nd) } else { 0 };
-        let mut costs = ZeroedBuffer::<u16>::new(cost_len);
+        let mut costs = ScratchBuffer::<u16>::new(cost_len);
         aggregate_and_select(
             &inputs,
             plan.strips,
