@@ -62,8 +62,10 @@ declare -A CLASSES=(
   [left-blur1.5]="left blur=1.5"
   [left-blur0.75]="left blur=0.75"
   [left-vshift1.0]="left vshift=1"
+  # A soft, vignetted left lens (both corrections on the reference view).
+  [left-soft]="left vignette=0.4,blur=1.5"
 )
-EXTRA="camera-mild camera-strong left-gain1.6 left-gamma2.0 left-bias-40 left-vignette0.4 left-blur1.5 left-blur0.75 left-vshift1.0"
+EXTRA="camera-mild camera-strong left-gain1.6 left-gamma2.0 left-bias-40 left-vignette0.4 left-blur1.5 left-blur0.75 left-vshift1.0 left-soft"
 ORDER="clean gain0.6 gain1.6 gamma0.5 gamma2.0 bias+40 bias-40 vignette0.4 noise6 jpeg50 blur1.5 vshift1.0 vshift0.5 rotate0.1"
 DEGRADATIONS="${DEGRADATIONS:-$ORDER}"
 for d in $DEGRADATIONS; do
