@@ -344,7 +344,9 @@ pub struct SgmParams {
     /// Upper bound (bytes) on the working memory the matcher plans (see
     /// [`planned_memory_bytes`]): the two-pass aggregation then runs on horizontal strips short
     /// enough to fit. `None` uses the default plan (strips sized for speed, see
-    /// [`planned_memory_bytes`]). A bound too small for even one-row strips is an error.
+    /// [`planned_memory_bytes`]). A bound too small for even one-row strips is an error. The
+    /// strip buffers of a call (up to 64 MiB) are kept for the next call of the same size and
+    /// released when a call needs other sizes.
     pub max_memory: Option<usize>,
     /// Speckle filter: 4-connected regions of valid pixels whose neighbours differ by at most
     /// [`SgmParams::speckle_max_diff`] and that hold fewer than this many pixels are invalidated
