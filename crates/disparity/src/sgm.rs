@@ -458,6 +458,7 @@ pub(crate) fn adapt_to_pair(
         Some((false, sigma)) => Some(crate::radiometric::unsharp_mask(left, sigma)),
         _ => None,
     };
+    let census_view_left = sharpened_left.as_ref().unwrap_or(left);
     let matched = |sigma| sigma * crate::radiometric::MATCHED_BLUR_FRACTION;
     let mut sharper_view_blur = None;
     let mut census_tolerance = 0;
@@ -471,7 +472,7 @@ pub(crate) fn adapt_to_pair(
                 (Cow::Owned(crate::radiometric::gaussian_blur(left, matched(s))), Cow::Borrowed(right))
             }
             Some((false, s)) => (
-                Cow::Borrowed(sharpened_left.as_ref().unwrap_or(left)),
+                Cow::Borrowed(census_view_left),
                 Cow::Owned(crate::radiometric::gaussian_blur(right, matched(s))),
             ),
             None => {
@@ -492,8 +493,8 @@ pub(crate) fn adapt_to_pair(
             || census(&l, params.census, census_tolerance, &mut census_left),
             || census(&r, params.census, census_tolerance, &mut census_right),
         );
-    } else if let Some(sharpened) = &sharpened_left {
-        census(sharpened, params.census, 0, &mut census_left);
+    } else if sharpened_left.is_some() {
+        census(census_view_left, params.census, 0, &mut census_left);
     }
     // The dense output's stricter left-right check and fill do better with the penalties of the
     // views census now compares, where one view was blurred to match the other
