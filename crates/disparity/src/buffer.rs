@@ -27,11 +27,13 @@ unsafe impl<T: Copy + Send> Send for ScratchBuffer<T> {}
 unsafe impl<T: Copy + Sync> Sync for ScratchBuffer<T> {}
 
 /// Smaller buffers come from the allocator (tiny pairs: not worth a system call).
+#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
 const MAP_THRESHOLD: usize = 1 << 20;
 
 /// Freed mappings kept for reuse, in bytes at most: the default strip volume and its kept costs
 /// (16 MiB each, `memory::DEFAULT_STRIP_BYTES`) for two pairs matched at once. Larger mappings
 /// (a volume sized by `--max-memory` for a huge pair) go back to the system.
+#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
 const KEPT_BYTES: usize = 64 << 20;
 
 /// A kept mapping: its address and length in bytes.
@@ -46,8 +48,8 @@ struct Mapping {
 static KEPT: Mutex<Vec<Mapping>> = Mutex::new(Vec::new());
 
 /// A kept mapping of at least `bytes` (and at most twice that, so a small buffer does not pin a
-/// large one), the smallest such. Without one the kept mappings are returned to the system (the
-/// pairs' sizes changed): memory kept idle never adds to a call's peak.
+/// large one), the smallest such. Without one the kept mappings are first returned to the system
+/// (the pairs' sizes changed), so a pair of another size does not hold them beside its own.
 #[cfg(target_os = "linux")]
 fn take_kept(bytes: usize) -> Option<Mapping> {
     let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
@@ -60,13 +62,17 @@ fn take_kept(bytes: usize) -> Option<Mapping> {
     match fitting {
         Some(i) => Some(kept.remove(i)),
         None => {
-            for m in kept.drain(..) {
-                // SAFETY: a mapping made in `ScratchBuffer::new` that no buffer holds any more.
-                unsafe { libc::munmap(m.addr as *mut libc::c_void, m.bytes) };
-            }
+            kept.drain(..).for_each(unmap);
             None
         }
     }
+}
+
+/// Returns a kept mapping to the system.
+#[cfg(target_os = "linux")]
+fn unmap(mapping: Mapping) {
+    // SAFETY: a mapping made in `ScratchBuffer::new` that no buffer holds any more.
+    unsafe { libc::munmap(mapping.addr as *mut libc::c_void, mapping.bytes) };
 }
 
 /// Keeps `mapping` for reuse, returning the oldest kept ones to the system past [`KEPT_BYTES`].
@@ -75,9 +81,7 @@ fn keep(mapping: Mapping) {
     let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
     kept.push(mapping);
     while kept.iter().map(|m| m.bytes).sum::<usize>() > KEPT_BYTES {
-        let oldest = kept.remove(0);
-        // SAFETY: a mapping made in `ScratchBuffer::new` that no buffer holds any more.
-        unsafe { libc::munmap(oldest.addr as *mut libc::c_void, oldest.bytes) };
+        unmap(kept.remove(0));
     }
 }
 
