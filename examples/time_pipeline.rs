@@ -34,6 +34,9 @@ mod allocator;
 
 fn main() {
     allocator::reuse_freed_memory();
+    // Calls after the warm-up reuse the matcher's strip buffers, as a long-lived process does
+    // (the batch, the Python package) and as OpenCV's matchers keep theirs.
+    stereo_disparity::keep_strip_buffers(true);
     let mut positional = Vec::new();
     let (mut options, mut threads, mut warmup) = (MatcherOptions::default(), None, 1usize);
     let mut args = std::env::args().skip(1);

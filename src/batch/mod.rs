@@ -76,6 +76,8 @@ pub fn run(config: &BatchConfig, out: &mut impl Write) -> Result<ExitCode> {
     }
     let files = walk(&config.input, &config.out)?;
     let found = discover::discover(&files, config.pattern.as_ref());
+    // Pair after pair: the matcher's strip buffers are kept for the next pair of the same size.
+    stereo_disparity::keep_strip_buffers(true);
 
     if !config.rig.is_complete() {
         let without: Vec<&PairSpec> = found.pairs.iter().filter(|p| p.calib.is_none()).collect();

@@ -3,13 +3,38 @@
 //! pages, so a multi-hundred-megabyte aggregation volume costs a few hundred page faults instead
 //! of tens of thousands; elsewhere (or if the mapping fails) a zeroed `Vec`.
 //!
-//! A freed mapping is kept (up to [`KEPT_BYTES`] in all) for the next call's buffers: a matcher
-//! called again in the same process (a batch, a Python loop, a video stream) then neither faults
-//! its volume in nor has the kernel zero it, as OpenCV's matchers keep their buffers between calls
-//! (docs/perf-notes.md).
+//! In a process that asked for it ([`keep_strip_buffers`]: a batch, the Python package) a freed
+//! mapping is kept (up to [`KEPT_BYTES`] in all) for the next call's buffers: a matcher called
+//! again (a Python loop, a video stream) then neither faults its volume in nor has the kernel zero
+//! it, as OpenCV's matchers keep their buffers between calls (docs/perf-notes.md). A one-shot run
+//! does not keep them: its post-processing would hold them beside its own buffers.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 #[cfg(target_os = "linux")]
 use std::sync::Mutex;
+
+/// Whether freed mappings are kept ([`keep_strip_buffers`]).
+static KEEPING: AtomicBool = AtomicBool::new(false);
+
+/// Keeps the matcher's largest working buffers (the aggregation strip and its cost rows, up to
+/// 64 MiB in the process) after each call for the next call of the same size, instead of returning
+/// them to the system: for a process that matches pair after pair, where the system would
+/// otherwise fault them in and zero them again on every call (5–25 % of a warm call's match time
+/// on the Middlebury pairs). Off by default; the command line's batch and the Python package turn
+/// it on. `false` returns the kept buffers to the system. Maps are the same either way.
+///
+/// ```
+/// stereo_disparity::keep_strip_buffers(true);
+/// // ... match a stream of pairs ...
+/// stereo_disparity::keep_strip_buffers(false);
+/// ```
+pub fn keep_strip_buffers(keep: bool) {
+    KEEPING.store(keep, Ordering::Relaxed);
+    #[cfg(target_os = "linux")]
+    if !keep {
+        KEPT.lock().unwrap_or_else(|e| e.into_inner()).drain(..).for_each(unmap);
+    }
+}
 
 /// A `[T]` of plain integers, freed (or kept for reuse) on drop. Its contents are unspecified: zero
 /// when fresh, what its last user wrote when reused.
@@ -144,7 +169,7 @@ impl<T: Copy> Drop for ScratchBuffer<T> {
     fn drop(&mut self) {
         #[cfg(target_os = "linux")]
         if self.mapped > 0 {
-            if self.mapped <= KEPT_BYTES {
+            if self.mapped <= KEPT_BYTES && KEEPING.load(Ordering::Relaxed) {
                 keep(Mapping { addr: self.ptr as usize, bytes: self.mapped });
             } else {
                 // SAFETY: unmapping exactly the mapping made in `new`, which no borrow outlives.
@@ -175,6 +200,7 @@ mod tests {
     #[cfg(target_os = "linux")]
     #[test]
     fn freed_mappings_are_kept_within_the_bound() {
+        keep_strip_buffers(true);
         let many: Vec<_> = (0..6).map(|_| ScratchBuffer::<u32>::new(KEPT_BYTES / 16)).collect();
         drop(many);
         let kept = KEPT.lock().unwrap();

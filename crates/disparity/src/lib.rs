@@ -49,6 +49,7 @@ mod winner;
 mod wta;
 
 pub use bm::block_match;
+pub use buffer::keep_strip_buffers;
 pub use fill::{fill_invalid, filled_mask};
 pub use filter::weighted_median;
 pub use names::{parse_named, Named};
@@ -344,9 +345,9 @@ pub struct SgmParams {
     /// Upper bound (bytes) on the working memory the matcher plans (see
     /// [`planned_memory_bytes`]): the two-pass aggregation then runs on horizontal strips short
     /// enough to fit. `None` uses the default plan (strips sized for speed, see
-    /// [`planned_memory_bytes`]). A bound too small for even one-row strips is an error. The
-    /// strip buffers of a call (up to 64 MiB) are kept for the next call of the same size and
-    /// released when a call needs other sizes.
+    /// [`planned_memory_bytes`]). A bound too small for even one-row strips is an error. With
+    /// [`keep_strip_buffers`] on, up to 64 MiB of a call's strip buffers stay allocated after it
+    /// for the next call of the same size (returned when a call needs other sizes).
     pub max_memory: Option<usize>,
     /// Speckle filter: 4-connected regions of valid pixels whose neighbours differ by at most
     /// [`SgmParams::speckle_max_diff`] and that hold fewer than this many pixels are invalidated

@@ -25,6 +25,9 @@ mod rig;
 #[pymodule]
 #[pyo3(name = "stereo_depth")]
 fn stereo_depth(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // A Python process typically matches frame after frame: the matcher's strip buffers are
+    // kept between calls (docs/python.md).
+    stereo_disparity::keep_strip_buffers(true);
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<matcher::Matcher>()?;
     m.add_class::<matcher::DetailedResult>()?;
