@@ -459,22 +459,23 @@ pub(crate) fn adapt_to_pair(
         _ => None,
     };
     let census_view_left = sharpened_left.as_ref().unwrap_or(left);
-    let matched = |sigma| sigma * crate::radiometric::MATCHED_BLUR_FRACTION;
-    let mut sharper_view_blur = None;
-    let mut census_tolerance = 0;
+    // With a one-sided defocus under the census smoothing, the sharper view is blurred to nearly
+    // match the other instead of both being smoothed (docs/robustness.md).
+    let sharper_view_blur = relative_blur
+        .filter(|_| census_smoothing)
+        .map(|(left_sharper, sigma)| (left_sharper, sigma * crate::radiometric::MATCHED_BLUR_FRACTION));
+    // Both views smoothed for noise or JPEG: what differences of a grey level or less remain are
+    // mostly noise, and in flat areas they gave the views unrelated bit strings. (A one-sided blur
+    // has no such noise: measured worse there, docs/robustness.md.)
+    let census_tolerance =
+        if census_smoothing && sharper_view_blur.is_none() { NOISY_CENSUS_TOLERANCE } else { 0 };
     if census_smoothing {
-        // With a one-sided defocus, the sharper view is blurred to nearly match the other
-        // instead of both being smoothed (docs/robustness.md).
-        sharper_view_blur = relative_blur.map(|(left_sharper, sigma)| (left_sharper, matched(sigma)));
         let sigma = crate::radiometric::NOISY_CENSUS_SMOOTHING;
-        let (l, r) = match relative_blur {
-            Some((true, s)) => {
-                (Cow::Owned(crate::radiometric::gaussian_blur(left, matched(s))), Cow::Borrowed(right))
+        let (l, r) = match sharper_view_blur {
+            Some((true, s)) => (Cow::Owned(crate::radiometric::gaussian_blur(left, s)), Cow::Borrowed(right)),
+            Some((false, s)) => {
+                (Cow::Borrowed(census_view_left), Cow::Owned(crate::radiometric::gaussian_blur(right, s)))
             }
-            Some((false, s)) => (
-                Cow::Borrowed(census_view_left),
-                Cow::Owned(crate::radiometric::gaussian_blur(right, matched(s))),
-            ),
             None => {
                 let (l, r) = rayon::join(
                     || crate::radiometric::gaussian_blur(left, sigma),
@@ -483,12 +484,6 @@ pub(crate) fn adapt_to_pair(
                 (Cow::Owned(l), Cow::Owned(r))
             }
         };
-        // Both views smoothed for noise or JPEG: what differences of a grey level or less remain
-        // are mostly noise, and in flat areas they gave the views unrelated bit strings. (A
-        // one-sided blur has no such noise: measured worse there, docs/robustness.md.)
-        if sharper_view_blur.is_none() {
-            census_tolerance = NOISY_CENSUS_TOLERANCE;
-        }
         rayon::join(
             || census(&l, params.census, census_tolerance, &mut census_left),
             || census(&r, params.census, census_tolerance, &mut census_right),
