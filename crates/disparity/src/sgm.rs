@@ -454,10 +454,13 @@ pub(crate) fn adapt_to_pair(
         Some(_) => crate::radiometric::relative_blur(left, right),
         None => input_blur,
     };
-    let sharpened_left = match relative_blur {
-        Some((false, sigma)) => Some(crate::radiometric::unsharp_mask(left, sigma)),
+    // The blur σ of a defocused left view (`relative_blur`'s `false`: the right view is the
+    // sharper), which every view of it the matcher reads is sharpened by.
+    let left_defocus = match relative_blur {
+        Some((false, sigma)) => Some(sigma),
         _ => None,
     };
+    let sharpened_left = left_defocus.map(|sigma| crate::radiometric::unsharp_mask(left, sigma));
     let census_view_left = sharpened_left.as_ref().unwrap_or(left);
     // With a one-sided defocus under the census smoothing, the sharper view is blurred to nearly
     // match the other instead of both being smoothed (docs/robustness.md).
@@ -533,10 +536,8 @@ pub(crate) fn adapt_to_pair(
         // A vignetted left view that is also the defocused one: the intensity term compares it
         // corrected and sharpened (wood2, left view vignetted 40 % and blurred 1.5 px: bad2
         // 18.06 / 2.62 → 17.91 / 2.55, docs/robustness.md).
-        None => match (corrected_left, relative_blur) {
-            (Some(l), Some((false, sigma))) => {
-                (Some(crate::radiometric::unsharp_mask(&l, sigma)), corrected_right)
-            }
+        None => match (corrected_left, left_defocus) {
+            (Some(l), Some(sigma)) => (Some(crate::radiometric::unsharp_mask(&l, sigma)), corrected_right),
             (l, _) => (l, corrected_right),
         },
     };
