@@ -33,6 +33,7 @@ mod hierarchical;
 mod kernels;
 mod memory;
 mod names;
+mod planes;
 mod post;
 mod radiometric;
 #[cfg(test)]
@@ -365,8 +366,11 @@ pub struct SgmParams {
     /// plane's stripes) is measured as one region (0: 4-connected pixels only, as OpenCV's
     /// `filterSpeckles`). [`SgmParams::with_fill`] sets [`DENSE_SPECKLE_BRIDGE`].
     pub speckle_bridge: usize,
-    /// Dense output: invalid pixels are filled, occlusions from the background side and
-    /// mismatches by interpolation ([`fill_invalid`]); [`sgm_detailed`] says which were filled.
+    /// Dense output: invalid pixels are filled, first those inside a segment of the left view
+    /// (similar grey) whose matched pixels lie on one disparity plane, from that plane (an
+    /// occlusion never in front of its row's neighbours), then the rest, occlusions from the
+    /// background side and mismatches by interpolation ([`fill_invalid`]); [`sgm_detailed`]
+    /// says which were filled.
     pub fill: bool,
     /// Edge snapping ([`SgmParams::fill`] or not): each disparity jump moves to the strongest
     /// intensity edge of the left image within this many pixels inside the foreground, and the

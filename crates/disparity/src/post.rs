@@ -5,6 +5,7 @@ use rayon::prelude::*;
 
 use crate::fill::fill_invalid;
 use crate::filter::{median_3x3, weighted_median, weighted_median_at_edges};
+use crate::planes::fill_from_segment_planes;
 use crate::snap::snap_edges;
 use crate::speckle::remove_speckles_keeping_border;
 use crate::status::{tagged_nan, untag, PixelStatus};
@@ -240,6 +241,7 @@ pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params
     );
     let status = untag(&mut disparity);
     if params.fill {
+        fill_from_segment_planes(&mut disparity, &status, left, params.range);
         fill_invalid(&mut disparity, &status);
     }
     for _ in 0..params.edge_snap_passes {
