@@ -18,6 +18,11 @@ use crate::{DisparityMap, DisparityRange, GrayImage, Image};
 const SEGMENT_SCALE: f32 = 400.0;
 /// Segments smaller than this (pixels) are merged into their most similar neighbour.
 const SEGMENT_MIN_SIZE: usize = 50;
+/// Larger views are segmented halved (2×2 means, as often as needed to fit), with the scale
+/// and the smallest size reduced alike: the segmentation is serial, 0.1–0.15 µs per pixel, and
+/// halving the three largest Middlebury scenes (0.35–0.37 megapixels) cost no accuracy
+/// (docs/accuracy.md).
+const SEGMENT_MAX_PIXELS: usize = 1 << 18;
 /// The smoothing of the left view before segmentation (σ, px).
 const SEGMENT_SIGMA: f32 = 0.8;
 /// A segment's plane is fitted only if at least this share of its pixels matched.
@@ -47,7 +52,7 @@ pub(crate) fn fill_from_segment_planes(
     if w < 2 || h < 2 {
         return 0;
     }
-    let labels = segment(left, SEGMENT_SCALE, SEGMENT_MIN_SIZE);
+    let labels = segment_reduced(left);
     let segments = labels.iter().copied().max().map_or(0, |m| m as usize + 1);
     // Each segment's pixels, in raster order (a counting sort of the labels).
     let mut start = vec![0usize; segments + 1];
@@ -114,6 +119,42 @@ fn row_background(disparity: &DisparityMap) -> Vec<f32> {
         }
     });
     out
+}
+
+/// [`segment`] of `left`, halved first while it exceeds [`SEGMENT_MAX_PIXELS`]: each pixel's
+/// label is its reduced pixel's.
+fn segment_reduced(left: &GrayImage) -> Vec<u32> {
+    let (w, h) = left.size();
+    let fits = |image: &GrayImage| {
+        image.width() * image.height() <= SEGMENT_MAX_PIXELS || image.width() < 4 || image.height() < 4
+    };
+    if fits(left) {
+        return segment(left, SEGMENT_SCALE, SEGMENT_MIN_SIZE);
+    }
+    let (mut image, mut level) = (halve(left), 1u32);
+    while !fits(&image) {
+        image = halve(&image);
+        level += 1;
+    }
+    // Half the scale and a quarter of the smallest size per level (measured on the Middlebury
+    // scenes halved, docs/accuracy.md).
+    let scale = SEGMENT_SCALE / (1u32 << level) as f32;
+    let min_size = (SEGMENT_MIN_SIZE >> (2 * level)).max(1);
+    let (rw, rh) = image.size();
+    let reduced = segment(&image, scale, min_size);
+    (0..w * h)
+        .map(|i| reduced[((i / w) >> level).min(rh - 1) * rw + ((i % w) >> level).min(rw - 1)])
+        .collect()
+}
+
+/// The 2×2 means of `image` (rounded; an odd last row or column dropped).
+fn halve(image: &GrayImage) -> GrayImage {
+    let (w, g) = (image.width(), image.as_slice());
+    GrayImage::from_fn(image.width() / 2, image.height() / 2, |x, y| {
+        let p = 2 * y * w + 2 * x;
+        ((u32::from(g[p]) + u32::from(g[p + 1]) + u32::from(g[p + w]) + u32::from(g[p + w + 1]) + 2) / 4)
+            as u16
+    })
 }
 
 /// The plane `d = a·x + b·y + c` most of the segment's matched pixels lie on, if any.
@@ -204,55 +245,61 @@ fn segment(image: &GrayImage, scale: f32, min_size: usize) -> Vec<u32> {
     let (w, h) = image.size();
     let smooth = gaussian_blur(image, SEGMENT_SIGMA);
     let g = smooth.as_slice();
-    // Weights quantised to 1/16 grey level and sorted by a counting sort (stable: ties keep
-    // the order they were generated in, so the result does not depend on threads).
-    const STEPS: f32 = 16.0;
-    let quantise = |a: u16, b: u16| ((f32::from(a.abs_diff(b)) / 257.0) * STEPS).round() as usize;
-    let mut edges: Vec<(u32, u32, u16)> = Vec::with_capacity(4 * w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let p = y * w + x;
-            let mut push = |q: usize| edges.push((p as u32, q as u32, quantise(g[p], g[q]) as u16));
-            if x + 1 < w {
-                push(p + 1);
-            }
-            if y + 1 < h {
-                push(p + w);
-                if x + 1 < w {
-                    push(p + w + 1);
-                }
-                if x > 0 {
-                    push(p + w - 1);
+    // Weights quantised to 1/16 grey level (rounded; 257 sixteen-bit steps per level) and the
+    // edges sorted by a counting sort, as ids `4 * pixel + direction`, without storing them
+    // unsorted: their weights are computed twice. Stable: ties keep raster order, so the
+    // result does not depend on threads. Memory matters: fresh pages cost more than the
+    // arithmetic here.
+    const STEPS: u32 = 16;
+    let quantise = |a: u16, b: u16| (u32::from(a.abs_diff(b)) * STEPS * 2 + 257) / (2 * 257);
+    let offsets = [1, w, w + 1, w - 1];
+    let each_edge = |mut visit: Box<dyn FnMut(u32, u32) + '_>| {
+        for y in 0..h {
+            for x in 0..w {
+                let p = y * w + x;
+                let has = [x + 1 < w, y + 1 < h, x + 1 < w && y + 1 < h, x > 0 && y + 1 < h];
+                for dir in 0..4 {
+                    if has[dir] {
+                        visit((4 * p + dir) as u32, quantise(g[p], g[p + offsets[dir]]));
+                    }
                 }
             }
         }
-    }
-    let levels = (255.0 * STEPS) as usize + 2;
-    let mut counts = vec![0usize; levels + 1];
-    for e in &edges {
-        counts[e.2 as usize + 1] += 1;
-    }
+    };
+    let levels = 255 * STEPS as usize + 2;
+    let mut start = vec![0u32; levels + 1];
+    each_edge(Box::new(|_, q| start[q as usize + 1] += 1));
     for k in 0..levels {
-        counts[k + 1] += counts[k];
+        start[k + 1] += start[k];
     }
-    let mut sorted = vec![(0u32, 0u32, 0u16); edges.len()];
-    for e in edges {
-        sorted[counts[e.2 as usize]] = e;
-        counts[e.2 as usize] += 1;
+    let mut sorted = vec![0u32; start[levels] as usize];
+    {
+        let mut next = start.clone();
+        each_edge(Box::new(|id, q| {
+            sorted[next[q as usize] as usize] = id;
+            next[q as usize] += 1;
+        }));
     }
+    let ends = |id: u32| {
+        let p = id as usize / 4;
+        (p as u32, (p + offsets[id as usize % 4]) as u32)
+    };
     let mut sets = DisjointSets::new(w * h, scale);
-    for &(a, b, q) in &sorted {
-        let weight = f32::from(q) / STEPS;
-        let (ra, rb) = (sets.find(a), sets.find(b));
-        if ra != rb && weight <= sets.threshold[ra as usize] && weight <= sets.threshold[rb as usize] {
-            let root = sets.union(ra, rb);
-            sets.threshold[root as usize] = weight + scale / sets.size[root as usize] as f32;
+    for q in 0..levels {
+        let weight = q as f32 / STEPS as f32;
+        for &id in &sorted[start[q] as usize..start[q + 1] as usize] {
+            let (a, b) = ends(id);
+            let (ra, rb) = (sets.find(a), sets.find(b));
+            if ra != rb && weight <= sets.threshold(ra) && weight <= sets.threshold(rb) {
+                let root = sets.union(ra, rb);
+                sets.nodes[root as usize].threshold = weight + scale / sets.size(root) as f32;
+            }
         }
     }
-    for &(a, b, _) in &sorted {
+    for &id in &sorted {
+        let (a, b) = ends(id);
         let (ra, rb) = (sets.find(a), sets.find(b));
-        if ra != rb && (sets.size[ra as usize] < min_size as u32 || sets.size[rb as usize] < min_size as u32)
-        {
+        if ra != rb && (sets.size(ra) < min_size as u32 || sets.size(rb) < min_size as u32) {
             sets.union(ra, rb);
         }
     }
@@ -270,32 +317,48 @@ fn segment(image: &GrayImage, scale: f32, min_size: usize) -> Vec<u32> {
         .collect()
 }
 
-/// Union–find with union by size and path halving; each set's merge threshold.
+/// Union–find with union by size and path halving; each set's merge threshold. A node's
+/// fields lie together: the merges visit nodes in no order the cache could predict.
 struct DisjointSets {
-    parent: Vec<u32>,
-    size: Vec<u32>,
-    threshold: Vec<f32>,
+    nodes: Vec<Node>,
+}
+
+#[derive(Clone, Copy)]
+struct Node {
+    parent: u32,
+    size: u32,
+    threshold: f32,
 }
 
 impl DisjointSets {
     fn new(n: usize, scale: f32) -> Self {
-        DisjointSets { parent: (0..n as u32).collect(), size: vec![1; n], threshold: vec![scale; n] }
+        DisjointSets {
+            nodes: (0..n as u32).map(|parent| Node { parent, size: 1, threshold: scale }).collect(),
+        }
     }
 
     fn find(&mut self, mut a: u32) -> u32 {
-        while self.parent[a as usize] != a {
-            let grand = self.parent[self.parent[a as usize] as usize];
-            self.parent[a as usize] = grand;
+        while self.nodes[a as usize].parent != a {
+            let grand = self.nodes[self.nodes[a as usize].parent as usize].parent;
+            self.nodes[a as usize].parent = grand;
             a = grand;
         }
         a
     }
 
+    fn size(&self, root: u32) -> u32 {
+        self.nodes[root as usize].size
+    }
+
+    fn threshold(&self, root: u32) -> f32 {
+        self.nodes[root as usize].threshold
+    }
+
     /// Joins two roots; returns the new root.
     fn union(&mut self, a: u32, b: u32) -> u32 {
-        let (big, small) = if self.size[a as usize] >= self.size[b as usize] { (a, b) } else { (b, a) };
-        self.parent[small as usize] = big;
-        self.size[big as usize] += self.size[small as usize];
+        let (big, small) = if self.size(a) >= self.size(b) { (a, b) } else { (b, a) };
+        self.nodes[small as usize].parent = big;
+        self.nodes[big as usize].size += self.size(small);
         big
     }
 }
@@ -325,6 +388,25 @@ mod tests {
                 if !(28..=31).contains(&x) {
                     assert_eq!(at(x, y), side, "({x}, {y})");
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn a_large_view_is_segmented_halved() {
+        // Over SEGMENT_MAX_PIXELS: segmented at a quarter of the resolution, labels still
+        // follow the edge.
+        let (w, h) = (1100, 1000);
+        assert!(w * h > SEGMENT_MAX_PIXELS);
+        let image =
+            GrayImage::from_fn(w, h, |x, y| if x < 550 { 60 * 257 } else { 180 * 257 } + texture(x, y));
+        let labels = segment_reduced(&image);
+        let (dark, bright) = (labels[500 * w + 100], labels[500 * w + 1000]);
+        assert_ne!(dark, bright);
+        for y in (0..h).step_by(7) {
+            // The step blurs over two reduced pixels (8 px) on either side.
+            for x in (0..w).filter(|x| !(538..=561).contains(x)) {
+                assert_eq!(labels[y * w + x], if x < 550 { dark } else { bright }, "({x}, {y})");
             }
         }
     }
