@@ -42,17 +42,20 @@ const SUPPORT_SAMPLE: usize = 256;
 
 /// Fills the NaN pixels of `disparity` that lie in a segment of `left` whose matched pixels
 /// lie on one plane with that plane's disparity (clamped to `range`). Returns how many.
+/// `reduction`: each pixel of `left` stands for this many of the input view's (a pair reduced
+/// before matching).
 pub(crate) fn fill_from_segment_planes(
     disparity: &mut DisparityMap,
     status: &Image<u8>,
     left: &GrayImage,
     range: DisparityRange,
+    reduction: usize,
 ) -> usize {
     let (w, h) = disparity.size();
     if w < 2 || h < 2 {
         return 0;
     }
-    let labels = segment_reduced(left);
+    let labels = segment_reduced(left, reduction);
     let segments = labels.iter().copied().max().map_or(0, |m| m as usize + 1);
     // Each segment's pixels, in raster order (a counting sort of the labels).
     let mut start = vec![0usize; segments + 1];
@@ -121,25 +124,27 @@ fn row_background(disparity: &DisparityMap) -> Vec<f32> {
     out
 }
 
-/// [`segment`] of `left`, halved first while it exceeds [`SEGMENT_MAX_PIXELS`]: each pixel's
-/// label is its reduced pixel's.
-fn segment_reduced(left: &GrayImage) -> Vec<u32> {
+/// [`segment`] of `left` (whose pixels each stand for `reduction` of the input view's), halved
+/// first while it exceeds [`SEGMENT_MAX_PIXELS`]: each pixel's label is its halved pixel's.
+fn segment_reduced(left: &GrayImage, reduction: usize) -> Vec<u32> {
     let (w, h) = left.size();
     let fits = |image: &GrayImage| {
         image.width() * image.height() <= SEGMENT_MAX_PIXELS || image.width() < 4 || image.height() < 4
     };
+    // The scale and the smallest size are meant for the input view's pixels: a segmented pixel
+    // that stands for `area` of them needs the scale divided by √area and the size by area
+    // (measured on the Middlebury scenes halved, docs/accuracy.md).
+    let parameters = |area: usize| (SEGMENT_SCALE / (area as f32).sqrt(), (SEGMENT_MIN_SIZE / area).max(1));
     if fits(left) {
-        return segment(left, SEGMENT_SCALE, SEGMENT_MIN_SIZE);
+        let (scale, min_size) = parameters(reduction);
+        return segment(left, scale, min_size);
     }
     let (mut image, mut level) = (halve(left), 1u32);
     while !fits(&image) {
         image = halve(&image);
         level += 1;
     }
-    // Half the scale and a quarter of the smallest size per level (measured on the Middlebury
-    // scenes halved, docs/accuracy.md).
-    let scale = SEGMENT_SCALE / (1u32 << level) as f32;
-    let min_size = (SEGMENT_MIN_SIZE >> (2 * level)).max(1);
+    let (scale, min_size) = parameters(reduction << (2 * level));
     let (rw, rh) = image.size();
     let reduced = segment(&image, scale, min_size);
     (0..w * h)
@@ -400,7 +405,7 @@ mod tests {
         assert!(w * h > SEGMENT_MAX_PIXELS);
         let image =
             GrayImage::from_fn(w, h, |x, y| if x < 550 { 60 * 257 } else { 180 * 257 } + texture(x, y));
-        let labels = segment_reduced(&image);
+        let labels = segment_reduced(&image, 1);
         let (dark, bright) = (labels[500 * w + 100], labels[500 * w + 1000]);
         assert_ne!(dark, bright);
         for y in (0..h).step_by(7) {
@@ -409,6 +414,15 @@ mod tests {
                 assert_eq!(labels[y * w + x], if x < 550 { dark } else { bright }, "({x}, {y})");
             }
         }
+    }
+
+    #[test]
+    fn a_reduced_view_is_segmented_at_the_input_scale() {
+        // A view matched at half resolution: its pixels stand for four of the input's.
+        let image =
+            GrayImage::from_fn(90, 70, |x, y| ((x / 9 + y / 7) % 4) as u16 * 40 * 257 + texture(x, y));
+        assert_eq!(segment_reduced(&image, 4), segment(&image, SEGMENT_SCALE / 2.0, SEGMENT_MIN_SIZE / 4));
+        assert_eq!(segment_reduced(&image, 1), segment(&image, SEGMENT_SCALE, SEGMENT_MIN_SIZE));
     }
 
     #[test]
@@ -425,7 +439,7 @@ mod tests {
         let status = crate::status::untag(&mut d);
         let holes = d.as_slice().iter().filter(|v| v.is_nan()).count();
         let range = DisparityRange::new(0, 32).unwrap();
-        assert_eq!(fill_from_segment_planes(&mut d, &status, &image, range), holes);
+        assert_eq!(fill_from_segment_planes(&mut d, &status, &image, range, 1), holes);
         for (i, (&got, &want)) in d.as_slice().iter().zip(truth.as_slice()).enumerate() {
             if status.as_slice()[i] != 0 {
                 assert!((got - want).abs() < 1e-3, "pixel {i}: {got} against {want}");
@@ -444,7 +458,7 @@ mod tests {
             _ => 20.0,
         });
         let status = crate::status::untag(&mut d);
-        fill_from_segment_planes(&mut d, &status, &image, DisparityRange::new(0, 32).unwrap());
+        fill_from_segment_planes(&mut d, &status, &image, DisparityRange::new(0, 32).unwrap(), 1);
         for y in 0..30 {
             for x in 20..30 {
                 assert_eq!(d.get(x, y), 8.0, "({x}, {y})");
@@ -478,7 +492,10 @@ mod tests {
         });
         let status = crate::status::untag(&mut d);
         let before = d.clone();
-        assert_eq!(fill_from_segment_planes(&mut d, &status, &image, DisparityRange::new(0, 32).unwrap()), 0);
+        assert_eq!(
+            fill_from_segment_planes(&mut d, &status, &image, DisparityRange::new(0, 32).unwrap(), 1),
+            0
+        );
         for (a, b) in d.as_slice().iter().zip(before.as_slice()) {
             assert_eq!(a.to_bits(), b.to_bits());
         }
@@ -501,7 +518,7 @@ mod tests {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             let mut m = d.clone();
             pool.install(|| {
-                fill_from_segment_planes(&mut m, &status, &image, DisparityRange::new(0, 32).unwrap())
+                fill_from_segment_planes(&mut m, &status, &image, DisparityRange::new(0, 32).unwrap(), 1)
             });
             m
         };

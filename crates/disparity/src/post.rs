@@ -136,12 +136,17 @@ pub(crate) fn check(params: &SgmParams) -> Result<(), Error> {
 const WMF_EDGE_JUMP: f32 = 1.0;
 
 /// Range-end rejection, the median (if enabled), then [`after_median`].
-pub(crate) fn finish(mut disparity: DisparityMap, left: &GrayImage, params: &SgmParams) -> SgmOutput {
+pub(crate) fn finish(
+    mut disparity: DisparityMap,
+    left: &GrayImage,
+    params: &SgmParams,
+    reduction: usize,
+) -> SgmOutput {
     reject_range_ends(&mut disparity, params.range);
     if params.median {
         disparity = median_3x3(&disparity);
     }
-    after_median(disparity, left, params)
+    after_median(disparity, left, params, reduction)
 }
 
 /// Rejects ([`PixelStatus::RangeEnd`]) every winner at an end of the disparities searched for it: the range's first and last disparity, and near the left border,
@@ -229,7 +234,14 @@ fn reject_border_cut(disparity: &mut DisparityMap, half_width: usize, dense: boo
 
 /// Far islands ([`crate::far_islands`]), speckle removal, the status image (plain NaNs from here on), the fill, edge snapping and the
 /// weighted median.
-pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params: &SgmParams) -> SgmOutput {
+/// `reduction`: the input view had this many times the pixels of `left` (the pair was reduced
+/// before matching), which the fill's segmentation follows.
+pub(crate) fn after_median(
+    mut disparity: DisparityMap,
+    left: &GrayImage,
+    params: &SgmParams,
+    reduction: usize,
+) -> SgmOutput {
     reject_border_cut(&mut disparity, params.census.width / 2, params.fill);
     crate::far_islands::reject_far_islands_tagged(&mut disparity, params.range);
     remove_speckles_keeping_border(
@@ -241,7 +253,7 @@ pub(crate) fn after_median(mut disparity: DisparityMap, left: &GrayImage, params
     );
     let status = untag(&mut disparity);
     if params.fill {
-        fill_from_segment_planes(&mut disparity, &status, left, params.range);
+        fill_from_segment_planes(&mut disparity, &status, left, params.range, reduction);
         fill_invalid(&mut disparity, &status);
     }
     for _ in 0..params.edge_snap_passes {

@@ -394,7 +394,7 @@ pub(crate) fn sgm_reference_ad(
     if params.median {
         disparity = crate::filter::median_3x3_reference(&disparity);
     }
-    crate::post::after_median(disparity, edges_left, params).disparity
+    crate::post::after_median(disparity, edges_left, params, 1).disparity
 }
 
 /// Measurement harness (not a check): runs the reference pipeline with an AD-census cost on

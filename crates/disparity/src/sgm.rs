@@ -33,10 +33,17 @@ pub fn sgm(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<Di
 /// [`sgm`] with the per-pixel [`crate::PixelStatus`] image: why each invalid pixel was rejected
 /// and, with [`SgmParams::fill`], which pixels were filled ([`SgmOutput::filled_mask`]).
 pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<SgmOutput, Error> {
-    crate::on_pool_thread(|| sgm_on_pool_thread(left, right, params))
+    crate::on_pool_thread(|| sgm_on_pool_thread(left, right, params, 1))
 }
 
-fn sgm_on_pool_thread(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> Result<SgmOutput, Error> {
+/// `area`: the caller's view has this many times the pixels of `left` (1, or the
+/// [`SgmParams::downscale`] factors' product when `left` is the reduced view).
+fn sgm_on_pool_thread(
+    left: &GrayImage,
+    right: &GrayImage,
+    params: &SgmParams,
+    area: usize,
+) -> Result<SgmOutput, Error> {
     check_pair(left, right)?;
     params.validate()?;
     if let Some((factors, small_left, small_right)) = reduction(left, right, params) {
@@ -66,7 +73,7 @@ fn sgm_on_pool_thread(left: &GrayImage, right: &GrayImage, params: &SgmParams) -
     });
     drop((census_left, census_right));
 
-    let mut output = crate::post::finish(disparity, edges_left, params);
+    let mut output = crate::post::finish(disparity, edges_left, params, area);
     if let Some(mut confidence) = confidence {
         // Pixels the post-processing invalidated or filled were not matched: no confidence.
         for ((c, &status), d) in confidence
@@ -342,7 +349,7 @@ fn match_downscaled(
         DisparityRange { max: small_range.max.min(small_range.min + small_width as i32), ..small_range };
     // The factor was decided on the full pair (auto included): the reduced pair is matched as it is.
     let small_params = SgmParams { range: small_range, downscale: Downscale::By(1), ..params.clone() };
-    let mut small = sgm_detailed(&small_left, &small_right, &small_params)?;
+    let mut small = sgm_on_pool_thread(&small_left, &small_right, &small_params, f * rows)?;
     drop((small_left, small_right));
 
     // A disparity that lands outside the range asked for is rejected, decided on the reduced map.

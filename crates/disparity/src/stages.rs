@@ -75,7 +75,7 @@ pub fn aggregate_and_select_disparities(
 /// ends, the median, border ramps, far islands, speckles, the status image, the fill (with
 /// [`SgmParams::fill`]), edge snapping and the weighted median.
 pub fn post_process(disparity: &DisparityMap, left: &GrayImage, params: &SgmParams) -> DisparityMap {
-    crate::post::finish(disparity.clone(), left, params).disparity
+    crate::post::finish(disparity.clone(), left, params, 1).disparity
 }
 
 /// The 3×3 median post-filter.
