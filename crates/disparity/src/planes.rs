@@ -430,7 +430,7 @@ mod tests {
         // One uniform segment; a slanted plane with holes in a regular pattern and a few outliers.
         let plane = |x: usize, y: usize| 10.0 + 0.05 * x as f32 - 0.02 * y as f32;
         let image = GrayImage::from_fn(80, 60, |x, y| 100 * 257 + texture(x, y));
-        let truth = DisparityMap::from_fn(80, 60, |x, y| plane(x, y));
+        let truth = DisparityMap::from_fn(80, 60, plane);
         let mut d = DisparityMap::from_fn(80, 60, |x, y| match (x * 3 + y * 5) % 7 {
             0 | 1 => tagged_nan(PixelStatus::Mismatch),
             2 if x % 11 == 0 => plane(x, y) + 6.0,
