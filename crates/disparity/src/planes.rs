@@ -103,8 +103,8 @@ pub(crate) fn fill_from_segment_planes(
     count
 }
 
-/// Per hole, the lower of the nearest matched disparities to its left and right on its row
-/// (NaN unless both exist).
+/// Per pixel, the lower of the nearest matched disparities at or left of it and at or right of
+/// it on its row (NaN unless both exist): what an occlusion must not lie in front of.
 fn row_background(disparity: &DisparityMap) -> Vec<f32> {
     let (w, _) = disparity.size();
     let mut out = vec![f32::NAN; disparity.as_slice().len()];
