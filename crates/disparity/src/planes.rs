@@ -42,20 +42,20 @@ const SUPPORT_SAMPLE: usize = 256;
 
 /// Fills the NaN pixels of `disparity` that lie in a segment of `left` whose matched pixels
 /// lie on one plane with that plane's disparity (clamped to `range`). Returns how many.
-/// `reduction`: each pixel of `left` stands for this many of the input view's (a pair reduced
+/// `area_reduction`: each pixel of `left` stands for this many of the input view's (a pair reduced
 /// before matching).
 pub(crate) fn fill_from_segment_planes(
     disparity: &mut DisparityMap,
     status: &Image<u8>,
     left: &GrayImage,
     range: DisparityRange,
-    reduction: usize,
+    area_reduction: usize,
 ) -> usize {
     let (w, h) = disparity.size();
     if w < 2 || h < 2 {
         return 0;
     }
-    let labels = segment_reduced(left, reduction);
+    let labels = segment_reduced(left, area_reduction);
     let segments = labels.iter().copied().max().map_or(0, |m| m as usize + 1);
     // Each segment's pixels, in raster order (a counting sort of the labels).
     let mut start = vec![0usize; segments + 1];
@@ -124,9 +124,9 @@ fn row_background(disparity: &DisparityMap) -> Vec<f32> {
     out
 }
 
-/// [`segment`] of `left` (whose pixels each stand for `reduction` of the input view's), halved
+/// [`segment`] of `left` (whose pixels each stand for `area_reduction` of the input view's), halved
 /// first while it exceeds [`SEGMENT_MAX_PIXELS`]: each pixel's label is its halved pixel's.
-fn segment_reduced(left: &GrayImage, reduction: usize) -> Vec<u32> {
+fn segment_reduced(left: &GrayImage, area_reduction: usize) -> Vec<u32> {
     let (w, h) = left.size();
     let fits = |image: &GrayImage| {
         image.width() * image.height() <= SEGMENT_MAX_PIXELS || image.width() < 4 || image.height() < 4
@@ -136,7 +136,7 @@ fn segment_reduced(left: &GrayImage, reduction: usize) -> Vec<u32> {
     // (measured on the Middlebury scenes halved, docs/accuracy.md).
     let parameters = |area: usize| (SEGMENT_SCALE / (area as f32).sqrt(), (SEGMENT_MIN_SIZE / area).max(1));
     if fits(left) {
-        let (scale, min_size) = parameters(reduction);
+        let (scale, min_size) = parameters(area_reduction);
         return segment(left, scale, min_size);
     }
     let (mut image, mut level) = (halve(left), 1u32);
@@ -144,7 +144,7 @@ fn segment_reduced(left: &GrayImage, reduction: usize) -> Vec<u32> {
         image = halve(&image);
         level += 1;
     }
-    let (scale, min_size) = parameters(reduction << (2 * level));
+    let (scale, min_size) = parameters(area_reduction << (2 * level));
     let (rw, rh) = image.size();
     let reduced = segment(&image, scale, min_size);
     (0..w * h)

@@ -140,13 +140,13 @@ pub(crate) fn finish(
     mut disparity: DisparityMap,
     left: &GrayImage,
     params: &SgmParams,
-    reduction: usize,
+    area_reduction: usize,
 ) -> SgmOutput {
     reject_range_ends(&mut disparity, params.range);
     if params.median {
         disparity = median_3x3(&disparity);
     }
-    after_median(disparity, left, params, reduction)
+    after_median(disparity, left, params, area_reduction)
 }
 
 /// Rejects ([`PixelStatus::RangeEnd`]) every winner at an end of the disparities searched for it: the range's first and last disparity, and near the left border,
@@ -234,13 +234,13 @@ fn reject_border_cut(disparity: &mut DisparityMap, half_width: usize, dense: boo
 
 /// Far islands ([`crate::far_islands`]), speckle removal, the status image (plain NaNs from here on), the fill, edge snapping and the
 /// weighted median.
-/// `reduction`: the input view had this many times the pixels of `left` (the pair was reduced
+/// `area_reduction`: the input view had this many times the pixels of `left` (the pair was reduced
 /// before matching), which the fill's segmentation follows.
 pub(crate) fn after_median(
     mut disparity: DisparityMap,
     left: &GrayImage,
     params: &SgmParams,
-    reduction: usize,
+    area_reduction: usize,
 ) -> SgmOutput {
     reject_border_cut(&mut disparity, params.census.width / 2, params.fill);
     crate::far_islands::reject_far_islands_tagged(&mut disparity, params.range);
@@ -253,7 +253,7 @@ pub(crate) fn after_median(
     );
     let status = untag(&mut disparity);
     if params.fill {
-        fill_from_segment_planes(&mut disparity, &status, left, params.range, reduction);
+        fill_from_segment_planes(&mut disparity, &status, left, params.range, area_reduction);
         fill_invalid(&mut disparity, &status);
     }
     for _ in 0..params.edge_snap_passes {

@@ -36,13 +36,13 @@ pub fn sgm_detailed(left: &GrayImage, right: &GrayImage, params: &SgmParams) -> 
     crate::on_pool_thread(|| sgm_on_pool_thread(left, right, params, 1))
 }
 
-/// `area`: the caller's view has this many times the pixels of `left` (1, or the
+/// `area_reduction`: the caller's view has this many times the pixels of `left` (1, or the
 /// [`SgmParams::downscale`] factors' product when `left` is the reduced view).
 fn sgm_on_pool_thread(
     left: &GrayImage,
     right: &GrayImage,
     params: &SgmParams,
-    area: usize,
+    area_reduction: usize,
 ) -> Result<SgmOutput, Error> {
     check_pair(left, right)?;
     params.validate()?;
@@ -73,7 +73,7 @@ fn sgm_on_pool_thread(
     });
     drop((census_left, census_right));
 
-    let mut output = crate::post::finish(disparity, edges_left, params, area);
+    let mut output = crate::post::finish(disparity, edges_left, params, area_reduction);
     if let Some(mut confidence) = confidence {
         // Pixels the post-processing invalidated or filled were not matched: no confidence.
         for ((c, &status), d) in confidence
