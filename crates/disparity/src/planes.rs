@@ -10,7 +10,7 @@
 
 use rayon::prelude::*;
 
-use crate::radiometric::gaussian_blur;
+use crate::radiometric::{downsample_by, gaussian_blur};
 use crate::status::PixelStatus;
 use crate::{DisparityMap, DisparityRange, GrayImage, Image};
 
@@ -139,6 +139,7 @@ fn segment_reduced(left: &GrayImage, area_reduction: usize) -> Vec<u32> {
         let (scale, min_size) = parameters(area_reduction);
         return segment(left, scale, min_size);
     }
+    let halve = |image: &GrayImage| downsample_by(image, 2, 2);
     let (mut image, mut level) = (halve(left), 1u32);
     while !fits(&image) {
         image = halve(&image);
@@ -150,16 +151,6 @@ fn segment_reduced(left: &GrayImage, area_reduction: usize) -> Vec<u32> {
     (0..w * h)
         .map(|i| reduced[((i / w) >> level).min(rh - 1) * rw + ((i % w) >> level).min(rw - 1)])
         .collect()
-}
-
-/// The 2×2 means of `image` (rounded; an odd last row or column dropped).
-fn halve(image: &GrayImage) -> GrayImage {
-    let (w, g) = (image.width(), image.as_slice());
-    GrayImage::from_fn(image.width() / 2, image.height() / 2, |x, y| {
-        let p = 2 * y * w + 2 * x;
-        ((u32::from(g[p]) + u32::from(g[p + 1]) + u32::from(g[p + w]) + u32::from(g[p + w + 1]) + 2) / 4)
-            as u16
-    })
 }
 
 /// The plane `d = a·x + b·y + c` most of the segment's matched pixels lie on, if any.
