@@ -243,60 +243,56 @@ fn segment(image: &GrayImage, scale: f32, min_size: usize) -> Vec<u32> {
     let g = smooth.as_slice();
     // Weights quantised to 1/16 grey level (rounded; 257 sixteen-bit steps per level) and the
     // edges sorted by a counting sort, as ids `4 * pixel + direction`, without storing them
-    // unsorted: their weights are computed twice. Stable: ties keep raster order, so the
-    // result does not depend on threads. Memory matters: fresh pages cost more than the
-    // arithmetic here.
-    const STEPS: u32 = 16;
-    let quantise = |a: u16, b: u16| (u32::from(a.abs_diff(b)) * STEPS * 2 + 257) / (2 * 257);
+    // unsorted: their weights are computed twice. Each band of rows is sorted on its own, in
+    // parallel; visiting every level band by band is the stable sort of all edges (ties in
+    // raster order), so the result does not depend on threads. Memory matters: fresh pages cost
+    // more than the arithmetic here.
     let offsets = [1, w, w + 1, w - 1];
-    let each_edge = |mut visit: Box<dyn FnMut(u32, u32) + '_>| {
-        for y in 0..h {
-            for x in 0..w {
-                let p = y * w + x;
-                let has = [x + 1 < w, y + 1 < h, x + 1 < w && y + 1 < h, x > 0 && y + 1 < h];
-                for dir in 0..4 {
-                    if has[dir] {
-                        visit((4 * p + dir) as u32, quantise(g[p], g[p + offsets[dir]]));
-                    }
-                }
+    let levels = 255 * EDGE_STEPS as usize + 2;
+    let bands: Vec<(Vec<u32>, Vec<u32>)> = (0..SEGMENT_BANDS)
+        .into_par_iter()
+        .map(|band| {
+            let rows = band * h / SEGMENT_BANDS..(band + 1) * h / SEGMENT_BANDS;
+            let mut start = vec![0u32; levels + 1];
+            for_each_edge(g, w, h, rows.clone(), |_, q| start[q as usize + 1] += 1);
+            for k in 0..levels {
+                start[k + 1] += start[k];
             }
-        }
+            let mut sorted = vec![0u32; start[levels] as usize];
+            let mut next = start.clone();
+            for_each_edge(g, w, h, rows, |id, q| {
+                sorted[next[q as usize] as usize] = id;
+                next[q as usize] += 1;
+            });
+            (start, sorted)
+        })
+        .collect();
+    let level_edges = |q: usize| {
+        bands.iter().flat_map(move |(start, sorted)| &sorted[start[q] as usize..start[q + 1] as usize])
     };
-    let levels = 255 * STEPS as usize + 2;
-    let mut start = vec![0u32; levels + 1];
-    each_edge(Box::new(|_, q| start[q as usize + 1] += 1));
-    for k in 0..levels {
-        start[k + 1] += start[k];
-    }
-    let mut sorted = vec![0u32; start[levels] as usize];
-    {
-        let mut next = start.clone();
-        each_edge(Box::new(|id, q| {
-            sorted[next[q as usize] as usize] = id;
-            next[q as usize] += 1;
-        }));
-    }
     let ends = |id: u32| {
         let p = id as usize / 4;
         (p as u32, (p + offsets[id as usize % 4]) as u32)
     };
     let mut sets = DisjointSets::new(w * h, scale);
     for q in 0..levels {
-        let weight = q as f32 / STEPS as f32;
-        for &id in &sorted[start[q] as usize..start[q + 1] as usize] {
+        let weight = q as f32 / EDGE_STEPS as f32;
+        for &id in level_edges(q) {
             let (a, b) = ends(id);
             let (ra, rb) = (sets.find(a), sets.find(b));
             if ra != rb && weight <= sets.threshold(ra) && weight <= sets.threshold(rb) {
                 let root = sets.union(ra, rb);
-                sets.nodes[root as usize].threshold = weight + scale / sets.size(root) as f32;
+                sets.roots[root as usize].threshold = weight + scale / sets.size(root) as f32;
             }
         }
     }
-    for &id in &sorted {
-        let (a, b) = ends(id);
-        let (ra, rb) = (sets.find(a), sets.find(b));
-        if ra != rb && (sets.size(ra) < min_size as u32 || sets.size(rb) < min_size as u32) {
-            sets.union(ra, rb);
+    for q in 0..levels {
+        for &id in level_edges(q) {
+            let (a, b) = ends(id);
+            let (ra, rb) = (sets.find(a), sets.find(b));
+            if ra != rb && (sets.size(ra) < min_size as u32 || sets.size(rb) < min_size as u32) {
+                sets.union(ra, rb);
+            }
         }
     }
     let mut label_of_root = vec![u32::MAX; w * h];
@@ -313,48 +309,78 @@ fn segment(image: &GrayImage, scale: f32, min_size: usize) -> Vec<u32> {
         .collect()
 }
 
+/// Edge weights are quantised to 1/`EDGE_STEPS` of an 8-bit grey level.
+const EDGE_STEPS: u32 = 16;
+/// Bands of rows whose edges are sorted in parallel (a fixed count: the order does not depend on
+/// threads).
+const SEGMENT_BANDS: usize = 8;
+
+/// Calls `visit(4 * pixel + direction, quantised weight)` for each edge of the 8-connected grid
+/// whose first pixel lies in `rows`, in raster order (directions: right, down, down-right,
+/// down-left).
+#[inline(always)]
+fn for_each_edge(
+    g: &[u16],
+    w: usize,
+    h: usize,
+    rows: std::ops::Range<usize>,
+    mut visit: impl FnMut(u32, u32),
+) {
+    let quantise = |a: u16, b: u16| (u32::from(a.abs_diff(b)) * EDGE_STEPS * 2 + 257) / (2 * 257);
+    let offsets = [1, w, w + 1, w - 1];
+    for y in rows {
+        for x in 0..w {
+            let p = y * w + x;
+            let has = [x + 1 < w, y + 1 < h, x + 1 < w && y + 1 < h, x > 0 && y + 1 < h];
+            for dir in 0..4 {
+                if has[dir] {
+                    visit((4 * p + dir) as u32, quantise(g[p], g[p + offsets[dir]]));
+                }
+            }
+        }
+    }
+}
+
 /// Union–find with union by size and path halving; each set's merge threshold. A node's
 /// fields lie together: the merges visit nodes in no order the cache could predict.
 struct DisjointSets {
-    nodes: Vec<Node>,
+    parent: Vec<u32>,
+    roots: Vec<Root>,
 }
 
 #[derive(Clone, Copy)]
-struct Node {
-    parent: u32,
+struct Root {
     size: u32,
     threshold: f32,
 }
 
 impl DisjointSets {
     fn new(n: usize, scale: f32) -> Self {
-        DisjointSets {
-            nodes: (0..n as u32).map(|parent| Node { parent, size: 1, threshold: scale }).collect(),
-        }
+        DisjointSets { parent: (0..n as u32).collect(), roots: vec![Root { size: 1, threshold: scale }; n] }
     }
 
     fn find(&mut self, mut a: u32) -> u32 {
-        while self.nodes[a as usize].parent != a {
-            let grand = self.nodes[self.nodes[a as usize].parent as usize].parent;
-            self.nodes[a as usize].parent = grand;
+        while self.parent[a as usize] != a {
+            let grand = self.parent[self.parent[a as usize] as usize];
+            self.parent[a as usize] = grand;
             a = grand;
         }
         a
     }
 
     fn size(&self, root: u32) -> u32 {
-        self.nodes[root as usize].size
+        self.roots[root as usize].size
     }
 
     fn threshold(&self, root: u32) -> f32 {
-        self.nodes[root as usize].threshold
+        self.roots[root as usize].threshold
     }
 
     /// Joins two roots; returns the new root.
     fn union(&mut self, a: u32, b: u32) -> u32 {
         let (big, small) = if self.size(a) >= self.size(b) { (a, b) } else { (b, a) };
-        self.nodes[small as usize].parent = big;
-        self.nodes[big as usize].size += self.size(small);
+        self.parent[small as usize] = big;
+        self.roots[big as usize].size += self.size(small);
         big
     }
 }
