@@ -19,7 +19,7 @@ const SEGMENT_SCALE: f32 = 400.0;
 /// Segments smaller than this (pixels) are merged into their most similar neighbour.
 const SEGMENT_MIN_SIZE: usize = 50;
 /// Larger views are segmented halved (2×2 means, as often as needed to fit), with the scale
-/// and the smallest size reduced alike: the segmentation is serial, 0.1–0.15 µs per pixel, and
+/// and the smallest size reduced alike: the merges are serial (about 0.1 µs per pixel, stop 42), and
 /// halving the three largest Middlebury scenes (0.35–0.37 megapixels) cost no accuracy
 /// (docs/accuracy.md).
 const SEGMENT_MAX_PIXELS: usize = 1 << 18;
