@@ -152,7 +152,11 @@ fn weighted_median_masked(
         .collect();
     let mut out = disparity.clone();
     out.as_mut_slice().par_chunks_mut(width).enumerate().for_each(|(y, row)| {
-        let mut window: Vec<(f32, f32)> = Vec::with_capacity(side * side);
+        // (disparity, weight) packed in one u64, the disparity's total-order bits above the
+        // weight's (positive: its bits order as it does): sorting integers is about twice as
+        // fast as sorting pairs with a float comparison, and orders the disparities alike
+        // (equal ones by weight: their weights are summed in a fixed order).
+        let mut window: Vec<u64> = Vec::with_capacity(side * side);
         let ys = y.saturating_sub(radius)..(y + radius + 1).min(height);
         for (x, o) in row.iter_mut().enumerate() {
             if o.is_nan() && !fill_holes {
@@ -177,19 +181,19 @@ fn weighted_median_masked(
                         continue;
                     }
                     let w = colour[usize::from((grow[xx] / 257).abs_diff(centre))] * srow[xx + radius - x];
-                    window.push((d, w));
+                    window.push(u64::from(order_key(d)) << 32 | u64::from(w.to_bits()));
                     total += w;
                 }
             }
             if window.is_empty() {
                 continue;
             }
-            window.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            window.sort_unstable();
             let mut acc = 0.0;
-            for &(d, w) in &window {
-                acc += w;
+            for &key in &window {
+                acc += f32::from_bits(key as u32);
                 if acc >= 0.5 * total {
-                    *o = d;
+                    *o = from_order_key((key >> 32) as u32);
                     break;
                 }
             }
@@ -198,9 +202,35 @@ fn weighted_median_masked(
     out
 }
 
+/// `d`'s bits mapped so that unsigned order is [`f32::total_cmp`]'s order.
+fn order_key(d: f32) -> u32 {
+    let bits = d.to_bits();
+    if bits & 0x8000_0000 != 0 {
+        !bits
+    } else {
+        bits | 0x8000_0000
+    }
+}
+
+/// The inverse of [`order_key`].
+fn from_order_key(key: u32) -> f32 {
+    f32::from_bits(if key & 0x8000_0000 != 0 { key & 0x7fff_ffff } else { !key })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn order_keys_sort_as_total_cmp_and_invert() {
+        let values = [-3.5f32, -0.25, -0.0, 0.0, 1e-30, 0.25, 7.0, 64.125, f32::MAX, f32::NEG_INFINITY];
+        for &a in &values {
+            assert_eq!(from_order_key(order_key(a)).to_bits(), a.to_bits());
+            for &b in &values {
+                assert_eq!(order_key(a).cmp(&order_key(b)), a.total_cmp(&b), "{a} vs {b}");
+            }
+        }
+    }
 
     #[test]
     fn median_matches_the_reference_on_random_maps() {
