@@ -247,7 +247,7 @@ fn segment(image: &GrayImage, scale: f32, min_size: usize) -> Vec<u32> {
     // parallel; visiting every level band by band is the stable sort of all edges (ties in
     // raster order), so the result does not depend on threads. Memory matters: fresh pages cost
     // more than the arithmetic here.
-    let offsets = [1, w, w + 1, w - 1];
+    let offsets = edge_offsets(w);
     let levels = 255 * EDGE_STEPS as usize + 2;
     let bands: Vec<(Vec<u32>, Vec<u32>)> = (0..SEGMENT_BANDS)
         .into_par_iter()
@@ -315,6 +315,12 @@ const EDGE_STEPS: u32 = 16;
 /// threads).
 const SEGMENT_BANDS: usize = 8;
 
+/// The index steps from a pixel to its neighbour in each edge direction of a `w`-wide grid:
+/// right, down, down-right, down-left.
+fn edge_offsets(w: usize) -> [usize; 4] {
+    [1, w, w + 1, w - 1]
+}
+
 /// Calls `visit(4 * pixel + direction, quantised weight)` for each edge of the 8-connected grid
 /// whose first pixel lies in `rows`, in raster order (directions: right, down, down-right,
 /// down-left).
@@ -327,7 +333,7 @@ fn for_each_edge(
     mut visit: impl FnMut(u32, u32),
 ) {
     let quantise = |a: u16, b: u16| (u32::from(a.abs_diff(b)) * EDGE_STEPS * 2 + 257) / (2 * 257);
-    let offsets = [1, w, w + 1, w - 1];
+    let offsets = edge_offsets(w);
     for y in rows {
         for x in 0..w {
             let p = y * w + x;
@@ -341,8 +347,9 @@ fn for_each_edge(
     }
 }
 
-/// Union–find with union by size and path halving; each set's merge threshold. A node's
-/// fields lie together: the merges visit nodes in no order the cache could predict.
+/// Union–find with union by size and path halving; each set's merge threshold. The parents lie
+/// apart from the roots' size and threshold: `find` walks parents at addresses no cache can
+/// predict, and a 4-byte array holds more of them per line.
 struct DisjointSets {
     parent: Vec<u32>,
     roots: Vec<Root>,
