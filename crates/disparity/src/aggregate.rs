@@ -27,6 +27,7 @@
 
 use std::sync::Mutex;
 
+use crate::buffer::ScratchBuffer;
 use crate::cost::{AdRows, AlignedRow, BtRow};
 use crate::kernels::layout::{
     fits, padded_lanes, padded_lanes_u8, FromRow, PathIn, Trailing, MAX_PATH_COST, PAD, PAD_U8,
@@ -105,6 +106,13 @@ trait PathCost: Copy + Default + Send + Sync + 'static {
     );
     /// This pass's cost row made by [`PathCost::make_costs`]: `wide` for `u16`, `narrow` for `u8`.
     fn costs<'a>(level: Level, wide: &'a [u16], nd: usize, narrow: &'a mut [Self]) -> &'a [Self];
+    /// The rows [`PathCost::make_costs`] writes when the row's costs live in `shared` (a row of
+    /// the strip's shared cost rows) instead of this pass's own rows `wide` and `narrow`.
+    fn shared_rows<'a>(
+        shared: &'a mut [Self],
+        wide: &'a mut [u16],
+        narrow: &'a mut [Self],
+    ) -> (&'a mut [u16], &'a mut [Self]);
     /// [`kernels::path_step`] in this type.
     fn step<const N: usize>(
         level: Level,
@@ -155,6 +163,13 @@ impl PathCost for u16 {
     }
     fn costs<'a>(_: Level, wide: &'a [u16], _: usize, _: &'a mut [u16]) -> &'a [u16] {
         wide
+    }
+    fn shared_rows<'a>(
+        shared: &'a mut [u16],
+        _: &'a mut [u16],
+        narrow: &'a mut [u16],
+    ) -> (&'a mut [u16], &'a mut [u16]) {
+        (shared, narrow)
     }
     #[inline(always)]
     fn step<const N: usize>(
@@ -207,6 +222,13 @@ impl PathCost for u8 {
     }
     fn costs<'a>(_: Level, _: &'a [u16], _: usize, narrow: &'a mut [u8]) -> &'a [u8] {
         narrow
+    }
+    fn shared_rows<'a>(
+        shared: &'a mut [u8],
+        wide: &'a mut [u16],
+        _: &'a mut [u8],
+    ) -> (&'a mut [u16], &'a mut [u8]) {
+        (wide, shared)
     }
     #[inline(always)]
     fn step<const N: usize>(
@@ -284,9 +306,9 @@ pub(crate) struct StripPlan {
     pub rows: usize,
     /// Rows below a strip over which the backward pass warms up its paths.
     pub overlap: usize,
-    /// Whether the `u16` passes keep each strip row's matching costs for the other pass
-    /// (`W × padded_lanes(D)` entries per row in [`aggregate_and_select`]'s `costs`), so every
-    /// cost row is computed once instead of once per pass.
+    /// Whether the passes keep each strip row's matching costs for the other pass (a strip of
+    /// `W × lanes` entries per row in the passes' type, beside the sums), so every cost row is
+    /// computed once instead of once per pass.
     pub shared_costs: bool,
 }
 
@@ -310,10 +332,10 @@ pub(crate) fn pass_state_bytes(width: usize, nd: usize, paths: PathCount) -> usi
 
 /// One row of the shared output: the path sums and the disparities, and whether one pass has
 /// already stored its sums (and, with shared costs, the row's matching costs).
-struct RowSlot<'a> {
+struct RowSlot<'a, T> {
     sum: &'a mut [u16],
-    /// The row's `u16` matching costs, made by the first pass to reach the row.
-    cost: Option<&'a mut [u16]>,
+    /// The row's matching costs (in the passes' type), made by the first pass to reach the row.
+    cost: Option<&'a mut [T]>,
     disparity: &'a mut [f32],
     visited: bool,
 }
@@ -328,51 +350,47 @@ enum Pass {
 
 /// Aggregates all path directions strip by strip (see the module documentation) and selects
 /// every row's disparities into `disparity`. `volume` holds at least `plan.rows` rows of sums
-/// (`[y][x][d]`, any initial contents); `costs` as many rows of `W × padded_lanes(D)` matching
-/// costs when [`StripPlan::shared_costs`] (and the passes run in `u16`), else it may be empty.
+/// (`[y][x][d]`, any initial contents). With [`StripPlan::shared_costs`] a strip's rows of
+/// matching costs (in the passes' type) are kept for the second pass.
 pub(crate) fn aggregate_and_select(
     inputs: &Inputs<'_>,
     plan: StripPlan,
     volume: &mut [u16],
-    costs: &mut [u16],
     disparity: &mut [f32],
 ) {
-    let (width, height) = inputs.image.size();
-    let nd = inputs.range.count();
+    let height = inputs.image.height();
     let strip_rows = plan.rows.clamp(1, height.max(1));
-    debug_assert!(volume.len() >= strip_rows.min(height) * width * nd);
-    debug_assert_eq!(disparity.len(), width * height);
+    debug_assert!(volume.len() >= strip_rows.min(height) * inputs.image.width() * inputs.range.count());
+    debug_assert_eq!(disparity.len(), inputs.image.width() * height);
     if use_u8(inputs) {
-        aggregate_strips::<u8>(inputs, strip_rows, plan.overlap, volume, &mut [], disparity);
+        aggregate_strips::<u8>(inputs, strip_rows, plan.overlap, plan.shared_costs, volume, disparity);
     } else {
-        let cost_row = width * padded_lanes(nd);
-        let costs = if plan.shared_costs { costs } else { &mut [][..] };
-        debug_assert!(costs.is_empty() || costs.len() >= strip_rows.min(height) * cost_row);
-        aggregate_strips::<u16>(inputs, strip_rows, plan.overlap, volume, costs, disparity);
+        aggregate_strips::<u16>(inputs, strip_rows, plan.overlap, plan.shared_costs, volume, disparity);
     }
 }
 
-/// [`aggregate_and_select`] with path costs of type `T`.
-/// With `costs` (non-empty, `u16` passes only) each strip row's matching costs are kept for the
-/// second pass.
+/// [`aggregate_and_select`] with path costs of type `T`. With `shared_costs` each strip row's
+/// matching costs are kept for the second pass (every entry is written before it is read).
 fn aggregate_strips<T: PathCost>(
     inputs: &Inputs<'_>,
     strip_rows: usize,
     overlap: usize,
+    shared_costs: bool,
     volume: &mut [u16],
-    costs: &mut [u16],
     disparity: &mut [f32],
 ) {
     let (width, height) = inputs.image.size();
     let nd = inputs.range.count();
-    let cost_row = width * padded_lanes(nd);
+    let cost_row = width * T::lanes(nd);
+    let mut costs = ScratchBuffer::<T>::new(if shared_costs { strip_rows.min(height) * cost_row } else { 0 });
+    let costs = costs.as_mut_slice();
     let mut forward = PassState::<T>::new(inputs, Pass::Forward);
     let mut backward = PassState::<T>::new(inputs, Pass::Backward);
     for (strip, disparity) in disparity.chunks_mut(strip_rows * width).enumerate() {
         let y0 = strip * strip_rows;
         let y1 = y0 + disparity.len() / width.max(1);
         let mut cost_rows = costs.chunks_mut(cost_row.max(1));
-        let rows: Vec<Mutex<RowSlot<'_>>> = volume[..(y1 - y0) * width * nd]
+        let rows: Vec<Mutex<RowSlot<'_, T>>> = volume[..(y1 - y0) * width * nd]
             .chunks_mut(width * nd)
             .zip(disparity.chunks_mut(width))
             .map(|(sum, disparity)| {
@@ -531,7 +549,7 @@ kernels::multiversion! {
         inputs: &Inputs<'_>,
         y0: usize,
         y1: usize,
-        rows: &[Mutex<RowSlot<'_>>],
+        rows: &[Mutex<RowSlot<'_, T>>],
     ) => run_rows_generic;
 }
 
@@ -541,7 +559,7 @@ fn run_rows_generic<T: PathCost>(
     inputs: &Inputs<'_>,
     y0: usize,
     y1: usize,
-    rows: &[Mutex<RowSlot<'_>>],
+    rows: &[Mutex<RowSlot<'_, T>>],
     level: Level,
 ) {
     let (width, nd) = (inputs.image.width(), inputs.range.count());
@@ -709,7 +727,7 @@ fn step_row_with<T: PathCost>(
     sum: &mut [u16],
     accumulate: bool,
     trailing: Option<Trailing<'_, T>>,
-    shared: Option<(&mut [u16], bool)>,
+    shared: Option<(&mut [T], bool)>,
 ) {
     let width = inputs.image.width();
     let nd = inputs.range.count();
@@ -737,9 +755,12 @@ fn step_row_with<T: PathCost>(
         p2_rows,
         ..
     } = state;
-    let (wide, ready) = match shared {
-        Some((row, ready)) => (row, ready),
-        None => (&mut cost[..], false),
+    let (wide, narrow, ready) = match shared {
+        Some((row, ready)) => {
+            let (wide, narrow) = T::shared_rows(row, cost, cost_narrow);
+            (wide, narrow, ready)
+        }
+        None => (&mut cost[..], &mut cost_narrow[..], false),
     };
     if !ready {
         let ad = inputs.ad.map(|(left, right, weight, cap)| {
@@ -747,11 +768,11 @@ fn step_row_with<T: PathCost>(
             bt_right.fill(right.row(y), true);
             AdRows { left: &*bt_left, right: &*bt_right, weight, cap }
         });
-        T::make_costs(inputs, y, ad, wide, cost_narrow);
+        T::make_costs(inputs, y, ad, wide, narrow);
     }
     let store = !sum.is_empty();
     let has_trailing = trailing.is_some();
-    let cost = T::costs(level, wide, nd, cost_narrow);
+    let cost = T::costs(level, wide, nd, narrow);
     if store
         && row_kernel(
             level,

@@ -20,8 +20,11 @@ static KEEPING: AtomicBool = AtomicBool::new(false);
 /// 64 MiB in the process) after each call for the next call of the same size, instead of returning
 /// them to the system: for a process that matches pair after pair, where the system would
 /// otherwise fault them in and zero them again on every call (5–25 % of a warm call's match time
-/// on the Middlebury pairs). Off by default; the command line's batch and the Python package turn
-/// it on. `false` returns the kept buffers to the system. Maps are the same either way.
+/// on the Middlebury pairs). While it is on, the two-pass aggregation's 8-bit passes (AVX-512) also
+/// keep each strip row's matching costs for the second pass instead of computing them twice (a
+/// fresh buffer for them costs a one-shot call more in page faults than it saves). Off by
+/// default; the command line's batch and the Python package turn it on. `false` returns the kept
+/// buffers to the system. Maps are the same either way.
 ///
 /// ```
 /// stereo_disparity::keep_strip_buffers(true);
@@ -34,6 +37,12 @@ pub fn keep_strip_buffers(keep: bool) {
     if !keep {
         KEPT.lock().unwrap_or_else(|e| e.into_inner()).drain(..).for_each(unmap);
     }
+}
+
+/// Whether [`keep_strip_buffers`] is on: a buffer mapped for this call is likely to be reused
+/// by the next one, so its page faults are paid once per process rather than once per call.
+pub(crate) fn keeping() -> bool {
+    KEEPING.load(Ordering::Relaxed)
 }
 
 /// A `[T]` of plain integers, freed (or kept for reuse) on drop. Its contents are unspecified: zero

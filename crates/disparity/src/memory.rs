@@ -99,17 +99,24 @@ pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPla
         let overlap = tuning("STEREO_DISPARITY_OVERLAP").unwrap_or(OVERLAP_ROWS);
         #[cfg(test)]
         let (rows, overlap) = tests::STRIPS.get().map_or((rows, overlap), |s| (s.rows, s.overlap));
-        // The `u16` passes keep each strip row's matching costs for the second pass where that
-        // fits the budget next to the strips planned above (so the strips, and the result, do
-        // not depend on it).
-        let cost_row = width.saturating_mul(crate::kernels::layout::padded_lanes(nd)).saturating_mul(2);
+        // The passes keep each strip row's matching costs for the second pass where that fits
+        // the budget next to the strips planned above (so the strips, and the result, do not
+        // depend on it): the `u16` passes always, the 8-bit passes (whose cost rows AVX-512
+        // computes faster than a fresh buffer's page faults cost) only where the strip buffers
+        // are kept between calls.
+        let u8_passes = crate::aggregate::u8_passes(worst_cost(params), params.p1, params.p2);
+        let cost_row = if u8_passes {
+            width.saturating_mul(crate::kernels::layout::padded_lanes_u8(nd))
+        } else {
+            width.saturating_mul(crate::kernels::layout::padded_lanes(nd)).saturating_mul(2)
+        };
         let strip_bytes = rows.saturating_mul(per_row);
         let shared_bytes = rows.saturating_mul(cost_row);
-        let u8_passes = crate::aggregate::u8_passes(worst_cost(params), params.p1, params.p2);
         let with_costs = fixed.saturating_add(strip_bytes).saturating_add(shared_bytes);
-        let shared_costs = !u8_passes && !matches!(params.max_memory, Some(m) if with_costs > m);
+        let shared_costs = (!u8_passes || crate::buffer::keeping())
+            && !matches!(params.max_memory, Some(m) if with_costs > m);
         #[cfg(test)]
-        let shared_costs = tests::STRIPS.get().map_or(shared_costs, |s| s.shared_costs && !u8_passes);
+        let shared_costs = tests::STRIPS.get().map_or(shared_costs, |s| s.shared_costs);
         let bytes =
             fixed.saturating_add(strip_bytes).saturating_add(if shared_costs { shared_bytes } else { 0 });
         (StripPlan { rows, overlap, shared_costs }, 1, bytes, too_large)
@@ -140,12 +147,17 @@ pub(crate) mod tests {
         pub(crate) static STRIPS: Cell<Option<StripPlan>> = const { Cell::new(None) };
     }
 
-    /// Runs `f` with the strip plan forced to `strips`.
-    pub(crate) fn with_strips<R>(strips: StripPlan, f: impl FnOnce() -> R) -> R {
-        STRIPS.set(Some(strips));
-        let r = f();
-        STRIPS.set(None);
-        r
+    /// Runs `f` with the strip plan forced to `strips`: on the one thread of a pool of its own,
+    /// since the matcher plans on a thread of the current pool (`on_pool_thread`), where a plan
+    /// forced on the caller's thread would not be seen.
+    pub(crate) fn with_strips<R: Send>(strips: StripPlan, f: impl FnOnce() -> R + Send) -> R {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a one-thread pool");
+        pool.install(|| {
+            STRIPS.set(Some(strips));
+            let r = f();
+            STRIPS.set(None);
+            r
+        })
     }
 
     #[test]

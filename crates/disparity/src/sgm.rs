@@ -6,7 +6,6 @@ use crate::census::census_transform_tolerant;
 use crate::confidence::census_confidence;
 use crate::cost::infeasible_cost;
 use crate::hierarchical::{aggregate_bands, stream_bands, Bands};
-use crate::kernels::layout::padded_lanes;
 use crate::memory;
 use crate::post::{Adaptation, SearchReport, SgmOutput};
 use crate::radiometric::{blockiness, CoarseMatch};
@@ -870,16 +869,7 @@ pub(crate) fn aggregate_census(
         // is read, and the strips reuse it).
         let rows = plan.strips.rows.min(height);
         let mut volume = ScratchBuffer::<u16>::new(rows * width * nd);
-        // The strip rows' matching costs, kept for the second pass (if the plan shares them).
-        let cost_len = if plan.strips.shared_costs { rows * width * padded_lanes(nd) } else { 0 };
-        let mut costs = ScratchBuffer::<u16>::new(cost_len);
-        aggregate_and_select(
-            &inputs,
-            plan.strips,
-            volume.as_mut_slice(),
-            costs.as_mut_slice(),
-            disparity.as_mut_slice(),
-        );
+        aggregate_and_select(&inputs, plan.strips, volume.as_mut_slice(), disparity.as_mut_slice());
     }
     disparity
 }
@@ -888,8 +878,10 @@ pub(crate) fn aggregate_census(
 /// images, the disparity map (twice while the median runs), the `O(W·D)` path state of each
 /// aggregation pass and the `u16` sum volume of one strip (`2·W·D` bytes per strip row; strips
 /// sized for speed by default, or to fit [`SgmParams::max_memory`]) with, where it fits beside
-/// them, the strip's matching costs kept for the second pass (about as much again); in
-/// single-pass mode one row of sums per thread instead. The input images are not counted. If `max_memory` is too small
+/// them, the strip's matching costs kept for the second pass (about as much again for `u16`
+/// costs, half as much for the 8-bit costs of AVX-512, which are kept only while
+/// [`keep_strip_buffers`](crate::keep_strip_buffers) is on); in single-pass mode one row of sums
+/// per thread instead. The input images are not counted. If `max_memory` is too small
 /// to plan anything, the smallest plan (one-row strips), which [`sgm`] refuses.
 pub fn planned_memory_bytes(width: usize, height: usize, params: &SgmParams) -> usize {
     memory::plan(width, height, params).bytes
@@ -1234,6 +1226,38 @@ mod tests {
             let striped = crate::memory::tests::with_strips(strips, || sgm(&left, &right, &params).unwrap());
             for (i, ((a, b), c)) in fast.as_slice().iter().zip(reference.as_slice()).zip(striped.as_slice()).enumerate() {
                 proptest::prop_assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "pixel {}: {} vs {}", i, a, b);
+                proptest::prop_assert!(c.to_bits() == b.to_bits() || (c.is_nan() && b.is_nan()), "strips of {} rows, pixel {}: {} vs {}", strip_rows, i, c, b);
+            }
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+
+        /// The default costs and penalties, which run the 8-bit passes on AVX-512: striped with
+        /// the cost rows shared between the passes (as while `keep_strip_buffers` is on) or made
+        /// by each, the maps are the scalar reference's bit for bit.
+        #[test]
+        fn shared_cost_rows_match_the_scalar_reference(
+            w in 20usize..80, h in 12usize..40, nd in 4i32..40, kind in 0u8..3, seed in proptest::prelude::any::<u64>(),
+            strip_rows in 1usize..30, shared in proptest::prelude::any::<bool>(), four in proptest::prelude::any::<bool>(),
+        ) {
+            let params = SgmParams {
+                range: DisparityRange::new(0, nd.min(w as i32 - 9)).unwrap(),
+                paths: if four { PathCount::Four } else { PathCount::Eight },
+                ..SgmParams::default()
+            };
+            let census_bits = (params.census.width * params.census.height - 1) as u32;
+            let worst = crate::cost::infeasible_cost(census_bits, params.matching_cost);
+            proptest::prop_assert_eq!(
+                crate::aggregate::u8_passes(worst, params.p1, params.p2),
+                crate::kernels::features().level.avx512()
+            );
+            let (left, right) = random_pair(w, h, kind, (seed % 8) as i64, seed);
+            let reference = crate::reference::sgm_reference(&left, &right, &params);
+            let strips = crate::aggregate::StripPlan { rows: strip_rows, overlap: h, shared_costs: shared };
+            let striped = crate::memory::tests::with_strips(strips, || sgm(&left, &right, &params).unwrap());
+            for (i, (c, b)) in striped.as_slice().iter().zip(reference.as_slice()).enumerate() {
                 proptest::prop_assert!(c.to_bits() == b.to_bits() || (c.is_nan() && b.is_nan()), "strips of {} rows, pixel {}: {} vs {}", strip_rows, i, c, b);
             }
         }
