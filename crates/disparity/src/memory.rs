@@ -142,8 +142,7 @@ pub(crate) mod tests {
 
     thread_local! {
         /// Forces the strip plan of [`plan`] on this thread: two-pass strip rows, overlap and
-        /// shared costs (where the passes run in `u16`), or single-pass thread count (`rows`)
-        /// and overlap.
+        /// shared costs, or single-pass thread count (`rows`) and overlap.
         pub(crate) static STRIPS: Cell<Option<StripPlan>> = const { Cell::new(None) };
     }
 
