@@ -23,7 +23,9 @@
 //! **Single pass** ([`stream_and_select`]): only the directions coming from above or from the
 //! left (→, ↓, ↘, ↙, plus ← by a second sweep over each row, as OpenCV's default `MODE_SGBM`),
 //! so every row is final as soon as it is done: `O(W·D)` memory, one cost row per image row.
-//! The image is cut into one strip per thread, each warming its paths up over the rows above it.
+//! The image is cut into strips by its height ([`crate::memory::stream_strips`], not by the
+//! threads, so the map is the same on any machine), each warming its paths up over the rows
+//! above it, run in parallel.
 
 use std::sync::Mutex;
 
@@ -413,7 +415,7 @@ fn aggregate_strips<T: PathCost>(
 }
 
 /// The single-pass ("streaming") aggregation over the directions from above and the left
-/// (→, ↓, ↘, ↙ and ← for 8 paths; →, ↓ and ← for 4), one strip per worker thread, each warming up
+/// (→, ↓, ↘, ↙ and ← for 8 paths; →, ↓ and ← for 4), in `strips` strips run in parallel, each warming up
 /// over `overlap` rows above it; selects every row's disparities into `disparity`.
 pub(crate) fn stream_and_select(inputs: &Inputs<'_>, strips: usize, overlap: usize, disparity: &mut [f32]) {
     let (width, height) = inputs.image.size();

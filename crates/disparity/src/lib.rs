@@ -335,8 +335,8 @@ pub struct SgmParams {
     pub median: bool,
     /// Single-pass ("streaming") aggregation: only the directions from above and the left
     /// (→ ↓ ↘ ↙ and ← for [`PathCount::Eight`], like OpenCV's `MODE_SGBM`; → ↓ ← for
-    /// [`PathCount::Four`]), so no `W·H·D` volume is kept: `O(W·D)` memory per thread and
-    /// about twice the speed, at some accuracy cost.
+    /// [`PathCount::Four`]), so no `W·H·D` volume is kept: `O(W·D)` memory per strip (2–8
+    /// strips, by the image's height) and about twice the speed, at some accuracy cost.
     pub single_pass: bool,
     /// How the range is searched ([`Search::Auto`]: coarse to fine for large ranges).
     pub search: Search,
@@ -438,7 +438,7 @@ impl Default for SgmParams {
 pub enum Preset {
     /// Three path directions (→ ↓ ←) in one top-down pass, like OpenCV's SGBM_3WAY, on the pair
     /// halved where its range allows ([`Downscale::Coarse`]): the fastest mode, with
-    /// O(width × disparities) memory per thread.
+    /// O(width × disparities) memory per strip of rows.
     Fast,
     /// The default parameters ([`SgmParams::default`]).
     #[default]

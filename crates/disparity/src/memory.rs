@@ -23,13 +23,31 @@ pub(crate) const MIN_DEFAULT_STRIP_ROWS: usize = 96;
 /// Bookkeeping per strip row (its lock and slices).
 const ROW_SLOT_BYTES: usize = 64;
 
+/// Rows per strip of the single-pass aggregation beyond which the image gets another strip...
+/// (each strip after the first repeats [`OVERLAP_ROWS`] rows: at 4× the Middlebury size, matched
+/// at about 550 rows, 128-row strips cost the fast preset 10–15 % on two threads)
+const STREAM_STRIP_ROWS: usize = 512;
+
+/// ... up to this many strips (and at least two, for two threads).
+const MAX_STREAM_STRIPS: usize = 8;
+
+/// The single-pass aggregation's strips for an image `height` rows high: a function of the image
+/// alone, not of the pool's threads. Each strip's paths start from a warm-up over the
+/// [`OVERLAP_ROWS`] rows above it, an approximation at its top edge, so strips cut per thread
+/// made the map differ between machines (and, through the adaptation's coarse match, the default
+/// preset's maps of pairs whose tones are corrected). Each strip beyond the first costs those
+/// rows again.
+pub(crate) fn stream_strips(height: usize) -> usize {
+    (height / STREAM_STRIP_ROWS).clamp(2, MAX_STREAM_STRIPS).min(height.max(1))
+}
+
 /// What [`crate::sgm`] will allocate.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct MemoryPlan {
     /// The strips of the two-pass aggregation (unused in single-pass mode).
     pub strips: StripPlan,
-    /// Threads (= strips) of the single-pass aggregation.
-    pub stream_threads: usize,
+    /// Strips of the single-pass aggregation ([`stream_strips`]).
+    pub stream_strips: usize,
     /// Peak working memory, bytes.
     pub bytes: usize,
     /// The smallest plan still exceeds [`SgmParams::max_memory`] (then `bytes` is that plan's).
@@ -65,23 +83,23 @@ pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPla
     let disparity = pixels.saturating_mul(4 * if params.median { 2 } else { 1 });
     let fixed = census.saturating_add(disparity);
     let row_bytes = width.saturating_mul(nd).saturating_mul(2);
-    let (strips, stream_threads, bytes, too_large) = if params.single_pass {
-        let threads = rayon::current_num_threads().clamp(1, height.max(1));
+    let (strips, stream_strips, bytes, too_large) = if params.single_pass {
+        let strips = stream_strips(height);
         // Two rows of sums and a second cost row: the ← path of each row runs beside the next
         // row's paths (at most the size of the `u16` cost row counted in the pass state).
         let held_cost = width.saturating_mul(crate::kernels::layout::padded_lanes(nd)).saturating_mul(2);
-        let per_thread = pass_state_bytes(width, nd, params.paths)
+        let per_strip = pass_state_bytes(width, nd, params.paths)
             .saturating_add(row_bytes.saturating_mul(2))
             .saturating_add(held_cost);
         #[cfg(test)]
-        let threads = tests::STRIPS.get().map_or(threads, |s| s.rows);
-        let bytes = fixed.saturating_add(threads.saturating_mul(per_thread));
+        let strips = tests::STRIPS.get().map_or(strips, |s| s.rows);
+        let bytes = fixed.saturating_add(strips.saturating_mul(per_strip));
         #[cfg(test)]
         let overlap = tests::STRIPS.get().map_or(OVERLAP_ROWS, |s| s.overlap);
         #[cfg(not(test))]
         let overlap = OVERLAP_ROWS;
-        let strips = StripPlan { rows: height, overlap, shared_costs: false };
-        (strips, threads, bytes, params.max_memory.is_some_and(|m| bytes > m))
+        let plan = StripPlan { rows: height, overlap, shared_costs: false };
+        (plan, strips, bytes, params.max_memory.is_some_and(|m| bytes > m))
     } else {
         let fixed = fixed.saturating_add(pass_state_bytes(width, nd, params.paths).saturating_mul(2));
         let per_row = row_bytes.saturating_add(ROW_SLOT_BYTES);
@@ -121,7 +139,7 @@ pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPla
             fixed.saturating_add(strip_bytes).saturating_add(if shared_costs { shared_bytes } else { 0 });
         (StripPlan { rows, overlap, shared_costs }, 1, bytes, too_large)
     };
-    MemoryPlan { strips, stream_threads, bytes, too_large }
+    MemoryPlan { strips, stream_strips, bytes, too_large }
 }
 
 /// The largest matching cost of `params`' cost (the aggregation's `worst`).

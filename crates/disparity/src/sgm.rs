@@ -795,7 +795,7 @@ fn match_coarse_to_fine(
     let level = crate::kernels::features().level;
     let disparity = if params.single_pass {
         let plan = memory::plan(width, height, params);
-        stream_bands(&inputs, &bands, level, plan.stream_threads, plan.strips.overlap)
+        stream_bands(&inputs, &bands, level, plan.stream_strips, plan.strips.overlap)
     } else {
         aggregate_bands(&inputs, &bands, level)
     };
@@ -863,7 +863,7 @@ pub(crate) fn aggregate_census(
     let p2 = P2Table::new(params.p1, params.p2, params.p2_edge_scale);
     let inputs = aggregation_inputs(left, right, census_left, census_right, params, &p2);
     if params.single_pass {
-        stream_and_select(&inputs, plan.stream_threads, plan.strips.overlap, disparity.as_mut_slice());
+        stream_and_select(&inputs, plan.stream_strips, plan.strips.overlap, disparity.as_mut_slice());
     } else {
         // The only volume: one strip of aggregated path costs (every entry is written before it
         // is read, and the strips reuse it).
@@ -881,7 +881,7 @@ pub(crate) fn aggregate_census(
 /// them, the strip's matching costs kept for the second pass (about as much again for `u16`
 /// costs, half as much for the 8-bit costs of AVX-512, which are kept only while
 /// [`keep_strip_buffers`](crate::keep_strip_buffers) is on); in single-pass mode one row of sums
-/// per thread instead. The input images are not counted. If `max_memory` is too small
+/// per strip instead. The input images are not counted. If `max_memory` is too small
 /// to plan anything, the smallest plan (one-row strips), which [`sgm`] refuses.
 pub fn planned_memory_bytes(width: usize, height: usize, params: &SgmParams) -> usize {
     memory::plan(width, height, params).bytes
