@@ -314,6 +314,19 @@ pub(crate) struct StripPlan {
     pub shared_costs: bool,
 }
 
+/// Bytes of one row of matching costs as the passes hold it (`u8` or `u16`), the row
+/// [`aggregate_strips`] keeps per strip row with [`StripPlan::shared_costs`].
+pub(crate) fn cost_row_bytes(width: usize, nd: usize, u8_passes: bool) -> usize {
+    fn bytes<T: PathCost>(width: usize, nd: usize) -> usize {
+        width.saturating_mul(T::lanes(nd)).saturating_mul(std::mem::size_of::<T>())
+    }
+    if u8_passes {
+        bytes::<u8>(width, nd)
+    } else {
+        bytes::<u16>(width, nd)
+    }
+}
+
 /// Bytes of path state one pass holds (for the memory plan).
 pub(crate) fn pass_state_bytes(width: usize, nd: usize, paths: PathCount) -> usize {
     let lanes = padded_lanes(nd);

@@ -123,11 +123,7 @@ pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPla
         // computes faster than a fresh buffer's page faults cost) only where the strip buffers
         // are kept between calls.
         let u8_passes = crate::aggregate::u8_passes(worst_cost(params), params.p1, params.p2);
-        let cost_row = if u8_passes {
-            width.saturating_mul(crate::kernels::layout::padded_lanes_u8(nd))
-        } else {
-            width.saturating_mul(crate::kernels::layout::padded_lanes(nd)).saturating_mul(2)
-        };
+        let cost_row = crate::aggregate::cost_row_bytes(width, nd, u8_passes);
         let strip_bytes = rows.saturating_mul(per_row);
         let shared_bytes = rows.saturating_mul(cost_row);
         let with_costs = fixed.saturating_add(strip_bytes).saturating_add(shared_bytes);
@@ -143,7 +139,7 @@ pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPla
 }
 
 /// The largest matching cost of `params`' cost (the aggregation's `worst`).
-fn worst_cost(params: &SgmParams) -> u16 {
+pub(crate) fn worst_cost(params: &SgmParams) -> u16 {
     let census_bits = (params.census.width * params.census.height).saturating_sub(1) as u32;
     crate::cost::infeasible_cost(census_bits, params.matching_cost)
 }
@@ -160,7 +156,7 @@ pub(crate) mod tests {
 
     thread_local! {
         /// Forces the strip plan of [`plan`] on this thread: two-pass strip rows, overlap and
-        /// shared costs, or single-pass thread count (`rows`) and overlap.
+        /// shared costs, or single-pass strip count (`rows`) and overlap.
         pub(crate) static STRIPS: Cell<Option<StripPlan>> = const { Cell::new(None) };
     }
 

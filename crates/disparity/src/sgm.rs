@@ -1247,10 +1247,8 @@ mod tests {
                 paths: if four { PathCount::Four } else { PathCount::Eight },
                 ..SgmParams::default()
             };
-            let census_bits = (params.census.width * params.census.height - 1) as u32;
-            let worst = crate::cost::infeasible_cost(census_bits, params.matching_cost);
             proptest::prop_assert_eq!(
-                crate::aggregate::u8_passes(worst, params.p1, params.p2),
+                crate::aggregate::u8_passes(crate::memory::worst_cost(&params), params.p1, params.p2),
                 crate::kernels::features().level.avx512()
             );
             let (left, right) = random_pair(w, h, kind, (seed % 8) as i64, seed);
