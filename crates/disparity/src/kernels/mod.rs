@@ -29,8 +29,9 @@ use layout::{
 /// lanes hold large values), `u8` lanes subtract first (`c + (best - prev_min)`, exact because
 /// the bracket lies in `0..=P2`); both are what the scalar references compute.
 /// `U8_512_REGISTERS` is the step alone on registers (`c, prev[d], prev[d - 1], prev[d + 1], P1,
-/// jump, prev_min`), for the row kernels that keep a path in registers.
-#[cfg(target_arch = "x86_64")]
+/// jump, prev_min`), for the row kernels that keep a path in registers. `U16_NEON` is the `u16`
+/// step on 128-bit NEON registers.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 macro_rules! path_vector {
     (U16_512, $($rest:tt)*) => {
         path_vector!(@ [_mm512_loadu_si512, _mm512_storeu_si512, _mm512_min_epu16, _mm512_adds_epu16, _mm512_sub_epi16], cost_first, $($rest)*)
@@ -43,6 +44,9 @@ macro_rules! path_vector {
     };
     (U8_256, $($rest:tt)*) => {
         path_vector!(@ [_mm256_loadu_si256, _mm256_storeu_si256, _mm256_min_epu8, _mm256_adds_epu8, _mm256_sub_epi8], bracket_first, $($rest)*)
+    };
+    (U16_NEON, $($rest:tt)*) => {
+        path_vector!(@ [vld1q_u16, vst1q_u16, vminq_u16, vqaddq_u16, vsubq_u16], cost_first, $($rest)*)
     };
     (U8_512_REGISTERS, $($rest:tt)*) => {
         path_vector!(@step [_mm512_min_epu8, _mm512_adds_epu8, _mm512_sub_epi8], bracket_first, $($rest)*)
@@ -71,6 +75,8 @@ macro_rules! path_vector {
     };
 }
 
+#[cfg(target_arch = "aarch64")]
+mod aarch64_neon;
 pub(crate) mod layout;
 pub(crate) mod scalar;
 #[cfg(test)]
@@ -80,6 +86,8 @@ mod x86_avx2;
 #[cfg(target_arch = "x86_64")]
 mod x86_avx512;
 
+#[cfg(target_arch = "aarch64")]
+use aarch64_neon as neon;
 #[cfg(target_arch = "x86_64")]
 use x86_avx2 as avx2;
 #[cfg(target_arch = "x86_64")]
@@ -96,6 +104,9 @@ pub(crate) enum Level {
     /// AVX-512F/BW/VL.
     #[cfg(target_arch = "x86_64")]
     Avx512,
+    /// Advanced SIMD (128-bit), on every aarch64 CPU that runs Linux.
+    #[cfg(target_arch = "aarch64")]
+    Neon,
 }
 
 impl Level {
@@ -106,6 +117,8 @@ impl Level {
         Level::Avx2,
         #[cfg(target_arch = "x86_64")]
         Level::Avx512,
+        #[cfg(target_arch = "aarch64")]
+        Level::Neon,
     ];
 
     /// The name `STEREO_DISPARITY_SIMD` takes and the benchmarks report.
@@ -116,6 +129,8 @@ impl Level {
             Level::Avx2 => "avx2",
             #[cfg(target_arch = "x86_64")]
             Level::Avx512 => "avx512",
+            #[cfg(target_arch = "aarch64")]
+            Level::Neon => "neon",
         }
     }
 
@@ -206,7 +221,13 @@ fn detect() -> Features {
             };
             Features { level, vpopcnt, vbmi, gfni }
         }
-        #[cfg(not(target_arch = "x86_64"))]
+        #[cfg(target_arch = "aarch64")]
+        {
+            let level =
+                if std::arch::is_aarch64_feature_detected!("neon") { Level::Neon } else { Level::Scalar };
+            Features { level, vpopcnt: false, vbmi: false, gfni: false }
+        }
+        #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
         {
             Features { level: Level::Scalar, vpopcnt: false, vbmi: false, gfni: false }
         }
@@ -238,7 +259,18 @@ macro_rules! multiversion {
             unsafe fn avx2 $(<$($g: $bound),*>)? ($($arg: $ty),*) $(-> $ret)? {
                 $generic($($arg),*, $crate::kernels::Level::Avx2)
             }
+            /// # Safety
+            /// The CPU must have NEON.
+            #[cfg(target_arch = "aarch64")]
+            #[target_feature(enable = "neon")]
+            #[allow(clippy::too_many_arguments)]
+            unsafe fn neon $(<$($g: $bound),*>)? ($($arg: $ty),*) $(-> $ret)? {
+                $generic($($arg),*, $crate::kernels::Level::Neon)
+            }
             match $crate::kernels::features().level {
+                // SAFETY: the level was detected on this CPU.
+                #[cfg(target_arch = "aarch64")]
+                $crate::kernels::Level::Neon => unsafe { neon($($arg),*) },
                 // SAFETY: the level was detected on this CPU.
                 #[cfg(target_arch = "x86_64")]
                 $crate::kernels::Level::Avx512 => unsafe { avx512($($arg),*) },
@@ -279,6 +311,9 @@ pub(crate) fn path_step<const N: usize>(
         // SAFETY: `Level::Avx2` is only chosen when the CPU has AVX2; lengths checked above.
         #[cfg(target_arch = "x86_64")]
         Level::Avx2 => unsafe { avx2::path_step_avx2(cost, p1, ins, outs, sum, accumulate) },
+        // SAFETY: `Level::Neon` is only chosen when the CPU has NEON; lengths checked above.
+        #[cfg(target_arch = "aarch64")]
+        Level::Neon => unsafe { neon::path_step_neon(cost, p1, ins, outs, sum, accumulate) },
         Level::Scalar => scalar::path_step_scalar(cost, p1, ins, outs, sum, accumulate),
     }
 }
@@ -317,6 +352,12 @@ pub(crate) fn path_step_inlined<const N: usize>(
         check_step_lengths(cost, &ins, &outs, sum);
         // SAFETY: `Level::Avx2` is only chosen when the CPU has AVX2; lengths checked above.
         return unsafe { avx2::path_step_avx2_body(cost, p1, ins, outs, sum, accumulate) };
+    }
+    #[cfg(target_arch = "aarch64")]
+    if level == Level::Neon {
+        check_step_lengths(cost, &ins, &outs, sum);
+        // SAFETY: `Level::Neon` is only chosen when the CPU has NEON; lengths checked above.
+        return unsafe { neon::path_step_neon_body(cost, p1, ins, outs, sum, accumulate) };
     }
     path_step(level, cost, p1, ins, outs, sum, accumulate)
 }
@@ -392,6 +433,9 @@ pub(crate) fn cost_row(
         Level::Avx512 | Level::Avx2 => unsafe {
             avx2::cost_row_avx2(left, right, min_disparity, nd, worst, ad, out)
         },
+        // SAFETY: `Level::Neon` is only chosen when the CPU has NEON; lengths were checked above.
+        #[cfg(target_arch = "aarch64")]
+        Level::Neon => unsafe { neon::cost_row_neon(left, right, min_disparity, nd, worst, ad, out) },
         Level::Scalar => scalar::cost_row_scalar(left, right, min_disparity, nd, worst, ad, out),
     }
 }
@@ -432,6 +476,10 @@ pub(crate) fn cost_bands(
         Level::Avx512 | Level::Avx2 => unsafe {
             avx2::cost_bands_avx2(left, right, bands, range_max, worst, ad, out)
         },
+        // SAFETY: `Level::Neon` is only chosen when the CPU has NEON; lengths and offsets were
+        // checked above.
+        #[cfg(target_arch = "aarch64")]
+        Level::Neon => unsafe { neon::cost_bands_neon(left, right, bands, range_max, worst, ad, out) },
         Level::Scalar => scalar::cost_bands_scalar(left, right, bands, range_max, worst, ad, out),
     }
 }
@@ -471,7 +519,8 @@ pub(crate) fn cost_row_u8(
         Level::Avx512 | Level::Avx2 => unsafe {
             avx2::cost_row_u8_avx2(left, right, min_disparity, nd, worst, ad, out)
         },
-        Level::Scalar => scalar::cost_row_u8_scalar(left, right, min_disparity, nd, worst, ad, out),
+        // The 8-bit passes run only with AVX-512 (`Level::avx512`); elsewhere the reference.
+        _ => scalar::cost_row_u8_scalar(left, right, min_disparity, nd, worst, ad, out),
     }
 }
 
@@ -486,6 +535,9 @@ pub(crate) fn argmin(level: Level, values: &[u16]) -> (u16, usize) {
         // SAFETY: `Level::Avx2` is only chosen when the CPU has AVX2.
         #[cfg(target_arch = "x86_64")]
         Level::Avx2 => unsafe { avx2::argmin_avx2(values) },
+        // SAFETY: `Level::Neon` is only chosen when the CPU has NEON.
+        #[cfg(target_arch = "aarch64")]
+        Level::Neon => unsafe { neon::argmin_neon(values) },
         Level::Scalar => scalar::argmin_scalar(values),
     }
 }
@@ -510,6 +562,9 @@ pub(crate) fn keep_smaller(
         // SAFETY: `Level::Avx2` is only chosen when the CPU has AVX2; lengths checked above.
         #[cfg(target_arch = "x86_64")]
         Level::Avx2 => unsafe { avx2::keep_smaller_avx2(costs, first_index, best, index) },
+        // SAFETY: `Level::Neon` is only chosen when the CPU has NEON; lengths checked above.
+        #[cfg(target_arch = "aarch64")]
+        Level::Neon => unsafe { neon::keep_smaller_neon(costs, first_index, best, index) },
         Level::Scalar => scalar::keep_smaller_scalar(costs, first_index, best, index),
     }
 }
@@ -521,7 +576,7 @@ pub(crate) fn bt_fill(level: Level, row: &[u16], value: &mut [u8], lo: &mut [u8]
         // SAFETY: the level was detected on this CPU (AVX-512F/BW/VL implies AVX2).
         #[cfg(target_arch = "x86_64")]
         Level::Avx512 | Level::Avx2 => unsafe { avx2::bt_fill_avx2(row, value, lo, hi) },
-        Level::Scalar => scalar::bt_fill_in_order(row, value, lo, hi),
+        _ => scalar::bt_fill_in_order(row, value, lo, hi),
     }
 }
 

@@ -1,0 +1,340 @@
+//! The NEON kernels (aarch64: Jetson, Raspberry Pi, Apple silicon, Graviton). Each is the NEON
+//! version of the function of the same stem in [`super::scalar`], selected by the dispatch in
+//! [`super`] only when the CPU has NEON (every aarch64 Linux CPU does), and proptested against
+//! that scalar reference. Imports only [`super::layout`] and [`super::scalar`].
+//!
+//! 128-bit registers: 8 `u16` disparities per instruction in the path step, 16 Hamming
+//! distances from 8 register loads in the cost row (`CNT` per byte, three pairwise additions).
+
+use std::arch::aarch64::*;
+
+use super::layout::{feasible, padded_lanes, AdRows, BandRow, PathIn, BT_PAD, JUNK_COST};
+use super::scalar::keep_smaller_scalar;
+
+/// NEON [`super::path_step`]: 8 disparities per instruction ([`path_step_neon_body`]).
+///
+/// # Safety
+/// The CPU must have NEON; lengths as checked by [`super::path_step`].
+#[inline]
+#[target_feature(enable = "neon")]
+pub(super) unsafe fn path_step_neon<const N: usize>(
+    cost: &[u16],
+    p1: u16,
+    ins: [PathIn<'_>; N],
+    outs: [&mut [u16]; N],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> [u16; N] {
+    path_step_neon_body(cost, p1, ins, outs, sum, accumulate)
+}
+
+/// The body of [`path_step_neon`], inlined into the NEON versions of the aggregation loops
+/// (`multiversion!`) as the AVX2 body is into theirs: called once per pixel, a call costs about
+/// as much as a short range's step.
+///
+/// # Safety
+/// The CPU must have NEON; lengths as checked by [`super::path_step`].
+#[inline(always)]
+pub(super) unsafe fn path_step_neon_body<const N: usize>(
+    cost: &[u16],
+    p1: u16,
+    ins: [PathIn<'_>; N],
+    outs: [&mut [u16]; N],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> [u16; N] {
+    let lanes = cost.len();
+    let nd = sum.len();
+    let p1v = vdupq_n_u16(p1);
+    let prev: [*const u16; N] = std::array::from_fn(|i| ins[i].prev.as_ptr());
+    let out: [*mut u16; N] = {
+        let mut outs = outs;
+        std::array::from_fn(|i| outs[i].as_mut_ptr())
+    };
+    let jump: [uint16x8_t; N] =
+        std::array::from_fn(|i| vdupq_n_u16(ins[i].prev_min.saturating_add(ins[i].p2)));
+    let pmin: [uint16x8_t; N] = std::array::from_fn(|i| vdupq_n_u16(ins[i].prev_min));
+    let mut mins = [vdupq_n_u16(u16::MAX); N];
+    let mut k = 0;
+    while k < lanes {
+        // SAFETY (pointer accesses below): `k + 8 <= lanes` (lanes is a multiple of 16),
+        // `prev`/`out` have `lanes + 2` entries, and `sum` is written only below `nd`.
+        let c = vld1q_u16(cost.as_ptr().add(k));
+        let mut total = vdupq_n_u16(0);
+        for i in 0..N {
+            let v = path_vector!(U16_NEON, c, prev[i].add(k), out[i].add(k + 1), p1v, jump[i], pmin[i]);
+            mins[i] = vminq_u16(mins[i], v);
+            total = vaddq_u16(total, v);
+        }
+        if k + 8 <= nd {
+            let dst = sum.as_mut_ptr().add(k);
+            if accumulate {
+                total = vaddq_u16(total, vld1q_u16(dst));
+            }
+            vst1q_u16(dst, total);
+        } else if k < nd {
+            let mut tmp = [0u16; 8];
+            vst1q_u16(tmp.as_mut_ptr(), total);
+            for (j, &t) in tmp[..nd - k].iter().enumerate() {
+                let d = &mut sum[k + j];
+                *d = if accumulate { d.wrapping_add(t) } else { t };
+            }
+        }
+        k += 8;
+    }
+    std::array::from_fn(|i| vminvq_u16(mins[i]))
+}
+
+/// NEON [`super::argmin`].
+///
+/// # Safety
+/// The CPU must have NEON; `values` is not empty.
+#[inline]
+#[target_feature(enable = "neon")]
+pub(super) unsafe fn argmin_neon(values: &[u16]) -> (u16, usize) {
+    let n = values.len();
+    let p = values.as_ptr();
+    let mut m = vdupq_n_u16(u16::MAX);
+    let mut k = 0;
+    while k + 8 <= n {
+        // SAFETY: `k + 8 <= n`.
+        m = vminq_u16(m, vld1q_u16(p.add(k)));
+        k += 8;
+    }
+    let mut min = vminvq_u16(m);
+    for &v in &values[k..] {
+        min = min.min(v);
+    }
+    let mv = vdupq_n_u16(min);
+    let mut k = 0;
+    while k + 8 <= n {
+        // SAFETY: `k + 8 <= n`.
+        let eq = vceqq_u16(vld1q_u16(p.add(k)), mv);
+        // Each lane's match narrowed to 4 bits of a 64-bit mask, in lane order.
+        let bits = vget_lane_u64::<0>(vreinterpret_u64_u8(vshrn_n_u16::<4>(eq)));
+        if bits != 0 {
+            return (min, k + bits.trailing_zeros() as usize / 8);
+        }
+        k += 8;
+    }
+    (min, k + values[k..].iter().position(|&v| v == min).unwrap_or(0))
+}
+
+/// NEON [`super::keep_smaller`]: 8 lanes per step, the lanes past the last whole step as in the
+/// reference.
+///
+/// # Safety
+/// The CPU must have NEON; lengths as checked by [`super::keep_smaller`].
+#[inline]
+#[target_feature(enable = "neon")]
+pub(super) unsafe fn keep_smaller_neon(costs: &[u16], first_index: u16, best: &mut [u16], index: &mut [u16]) {
+    let n = costs.len();
+    let iota = vld1q_u16([0u16, 1, 2, 3, 4, 5, 6, 7].as_ptr());
+    let mut k = 0;
+    while k + 8 <= n {
+        // SAFETY: `k + 8 <= n`, the length of all three slices.
+        let c = vld1q_u16(costs.as_ptr().add(k));
+        let b = vld1q_u16(best.as_ptr().add(k));
+        let i = vld1q_u16(index.as_ptr().add(k));
+        let better = vcltq_u16(c, b);
+        let ks = vaddq_u16(iota, vdupq_n_u16((usize::from(first_index) + k) as u16));
+        vst1q_u16(best.as_mut_ptr().add(k), vminq_u16(c, b));
+        vst1q_u16(index.as_mut_ptr().add(k), vbslq_u16(better, ks, i));
+        k += 8;
+    }
+    keep_smaller_scalar(&costs[k..], first_index + k as u16, &mut best[k..], &mut index[k..]);
+}
+
+/// [`super::cost_row`] for NEON machines: [`cost_pixel_neon`] for each pixel.
+///
+/// # Safety
+/// The CPU must have NEON; lengths as checked by [`super::cost_row`].
+#[target_feature(enable = "neon")]
+pub(super) unsafe fn cost_row_neon(
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u16],
+) {
+    let lanes = padded_lanes(nd);
+    for (x, costs) in out.chunks_exact_mut(lanes).enumerate() {
+        // SAFETY: as checked by the caller; `costs` is pixel `x`'s `lanes` entries.
+        cost_pixel_neon(left, right, x, min_disparity, nd, worst, &ad, costs);
+    }
+}
+
+/// [`super::cost_bands`] for NEON machines: [`cost_pixel_neon`] for each pixel over its own
+/// band.
+///
+/// # Safety
+/// The CPU must have NEON; lengths as checked by [`super::cost_bands`].
+#[target_feature(enable = "neon")]
+pub(super) unsafe fn cost_bands_neon(
+    left: &[u64],
+    right: &[u64],
+    bands: BandRow<'_>,
+    range_max: i32,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u16],
+) {
+    for x in 0..left.len() {
+        let (o, nd, entries) = bands.band(x, range_max);
+        // SAFETY: `starts[x] + lanes[x] <= out.len()`, `lanes[x]` a multiple of 16 and
+        // `offsets[x] < range_max` (checked by the caller).
+        cost_pixel_neon(left, right, x, o, nd, worst, &ad, &mut out[entries]);
+    }
+}
+
+/// Pixel `x`'s costs from disparity `min_disparity` into `costs` (as the scalar reference's
+/// pixel): the census Hamming distances 16 disparities per step ([`hamming_block_neon`]) where
+/// all 16 right pixels are inside the row, the reference's step at the ends of the feasible
+/// range, `worst` where the right pixel is outside the row, [`JUNK_COST`] past `nd`, then the AD
+/// term ([`add_ad_neon`]).
+///
+/// # Safety
+/// The CPU must have NEON; `costs.len()` is a multiple of 16 and at least `nd`, the BT rows (if
+/// any) are padded by [`BT_PAD`].
+#[inline]
+#[target_feature(enable = "neon")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn cost_pixel_neon(
+    left: &[u64],
+    right: &[u64],
+    x: usize,
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: &Option<AdRows<'_>>,
+    costs: &mut [u16],
+) {
+    let width = left.len();
+    let l = left[x];
+    let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+    costs[..lo].fill(worst);
+    // Disparity index k has its right pixel at first - k.
+    let scalar = |costs: &mut [u16], k: usize| {
+        costs[k] = (l ^ right[(first - k as i64) as usize]).count_ones() as u16;
+    };
+    let mut k = lo;
+    while k < hi && !k.is_multiple_of(16) {
+        scalar(costs, k);
+        k += 1;
+    }
+    while k + 16 <= hi {
+        // SAFETY: k..k + 16 are feasible, so right pixels first - k - 15 ..= first - k are
+        // inside the row; entries k..k + 16 are this pixel's (k + 16 <= hi <= costs.len()).
+        hamming_block_neon(
+            l,
+            right.as_ptr().add((first - k as i64) as usize - 15),
+            costs.as_mut_ptr().add(k),
+        );
+        k += 16;
+    }
+    while k < hi {
+        scalar(costs, k);
+        k += 1;
+    }
+    costs[hi..nd].fill(worst);
+    costs[nd..].fill(JUNK_COST);
+    if let Some(ad) = ad {
+        // SAFETY: `lo..hi` are the feasible disparities of `x`, whose entries start at `costs`
+        // (a multiple of 16 long, so every 16-entry block below `hi` is inside it).
+        add_ad_neon(ad, costs.as_mut_ptr(), x, width, first, lo, hi);
+    }
+}
+
+/// Stores the 16 Hamming distances `popcount(l ^ r[15 - i])` for `i` in `0..16` at `dst` (`r`
+/// the 16 right census strings from the lowest address, so entry `i` is disparity `k + i`):
+/// `CNT` counts each byte, three rounds of pairwise byte additions sum each string's 8 counts
+/// (at most 64, so bytes suffice), the bytes are reversed into disparity order and widened.
+///
+/// # Safety
+/// The CPU must have NEON; `r` points at 16 readable `u64`, `dst` at 16 writable `u16`.
+#[inline]
+#[target_feature(enable = "neon")]
+unsafe fn hamming_block_neon(l: u64, r: *const u64, dst: *mut u16) {
+    let lv = vreinterpretq_u8_u64(vdupq_n_u64(l));
+    let count = |i: usize| vcntq_u8(veorq_u8(vld1q_u8(r.add(2 * i).cast()), lv));
+    // Strings 4j..4j + 4, two byte sums each; then 8j..8j + 8, four; then all 16 in memory order.
+    let q0 = vpaddq_u8(vpaddq_u8(count(0), count(1)), vpaddq_u8(count(2), count(3)));
+    let q1 = vpaddq_u8(vpaddq_u8(count(4), count(5)), vpaddq_u8(count(6), count(7)));
+    let sums = vpaddq_u8(q0, q1);
+    // Lowest address is the highest disparity: reverse the 16 bytes.
+    let reversed = vrev64q_u8(vextq_u8::<8>(sums, sums));
+    vst1q_u16(dst, vmovl_u8(vget_low_u8(reversed)));
+    vst1q_u16(dst.add(8), vmovl_high_u8(reversed));
+}
+
+/// Lane masks for [`add_ad_neon`]: 16 entries read from `MASKS[16 - n..]` are set from lane
+/// `n` on; from `MASKS[32 - n..]` below lane `n`.
+static MASKS: [u16; 48] = {
+    let mut m = [0u16; 48];
+    let mut i = 16;
+    while i < 32 {
+        m[i] = u16::MAX;
+        i += 1;
+    }
+    m
+};
+
+/// Adds the AD term `min(weight · BT, cap)` of pixel `x` to its costs at `dst` for the feasible
+/// disparities `lo..hi` (as the AD part of the scalar reference), 16 disparities per step.
+///
+/// # Safety
+/// The CPU must have NEON; `dst` points at pixel `x`'s `padded_lanes(nd)` entries, `lo..hi` are
+/// its feasible disparities and the BT rows are padded by [`BT_PAD`].
+#[inline]
+#[target_feature(enable = "neon")]
+unsafe fn add_ad_neon(
+    ad: &AdRows<'_>,
+    dst: *mut u16,
+    x: usize,
+    width: usize,
+    first: i64,
+    lo: usize,
+    hi: usize,
+) {
+    if lo >= hi {
+        return;
+    }
+    let il = BT_PAD + x;
+    let (lv, llo, lhi) =
+        (vdupq_n_u8(ad.left.value[il]), vdupq_n_u8(ad.left.lo[il]), vdupq_n_u8(ad.left.hi[il]));
+    let weight = vdupq_n_u16(ad.weight);
+    let cap = vdupq_n_u16(ad.cap);
+    let base = BT_PAD as i64 + width as i64 - 1 - first;
+    let mut k = lo & !15;
+    while k < hi {
+        let below = lo.saturating_sub(k);
+        let upto = (hi - k).min(16);
+        // SAFETY: `below <= 15` and `1 <= upto <= 16`: every read below is inside `MASKS`.
+        let mask = |half: usize| {
+            vandq_u16(
+                vld1q_u16(MASKS.as_ptr().add(16 - below + 8 * half)),
+                vld1q_u16(MASKS.as_ptr().add(32 - upto + 8 * half)),
+            )
+        };
+        // SAFETY: the right rows are padded by `BT_PAD` (32) entries at both ends, so the 16
+        // bytes at `i` (feasible pixels, or at most 15 past them) are inside them.
+        let i = (base + k as i64) as usize;
+        let rv = vld1q_u8(ad.right.value.as_ptr().add(i));
+        let rlo = vld1q_u8(ad.right.lo.as_ptr().add(i));
+        let rhi = vld1q_u8(ad.right.hi.as_ptr().add(i));
+        let d_lr = vmaxq_u8(vqsubq_u8(lv, rhi), vqsubq_u8(rlo, lv));
+        let d_rl = vmaxq_u8(vqsubq_u8(rv, lhi), vqsubq_u8(llo, rv));
+        let bt = vminq_u8(d_lr, d_rl);
+        let term = |half: uint16x8_t| vminq_u16(vmulq_u16(half, weight), cap);
+        // SAFETY: `k` is a multiple of 16 below `hi <= lanes` (a multiple of 16), so entries
+        // `k..k + 16` are this pixel's; lanes outside `lo..hi` add 0.
+        let p = dst.add(k);
+        let low = vandq_u16(term(vmovl_u8(vget_low_u8(bt))), mask(0));
+        let high = vandq_u16(term(vmovl_high_u8(bt)), mask(1));
+        vst1q_u16(p, vaddq_u16(vld1q_u16(p), low));
+        vst1q_u16(p.add(8), vaddq_u16(vld1q_u16(p.add(8)), high));
+        k += 16;
+    }
+}
