@@ -4,12 +4,13 @@
 //! that scalar reference. Imports only [`super::layout`] and [`super::scalar`].
 //!
 //! 128-bit registers: 8 `u16` disparities per instruction in the path step, 16 Hamming
-//! distances from 8 register loads in the cost row (`CNT` per byte, three pairwise additions).
+//! distances from 8 register loads in the cost row (`CNT` per byte, three pairwise additions),
+//! 8 pixels per step in the census transform.
 
 use std::arch::aarch64::*;
 
-use super::layout::{feasible, padded_lanes, AdRows, BandRow, PathIn, BT_PAD, JUNK_COST};
-use super::scalar::keep_smaller_scalar;
+use super::layout::{feasible, padded_lanes, AdRows, BandRow, PathIn, Samples, Window, BT_PAD, JUNK_COST};
+use super::scalar::{census_span_scalar, keep_smaller_scalar, pad_window_rows};
 
 /// NEON [`super::path_step`]: 8 disparities per instruction ([`path_step_neon_body`]).
 ///
@@ -337,4 +338,74 @@ unsafe fn add_ad_neon(
         vst1q_u16(p.add(8), vaddq_u16(vld1q_u16(p.add(8)), high));
         k += 16;
     }
+}
+
+/// [`super::scalar::census_row_scalar`] with NEON: 8 pixels per step, their bits gathered in four
+/// 16-bit accumulators (census bits 0–15, 16–31, 32–47 and 48–63, each filled most significant
+/// bit first, as the reference shifts them in; `SLI` shifts and inserts in one instruction) and
+/// interleaved into the 64-bit strings at the end; the pixels past the last whole step as in the
+/// reference.
+///
+/// # Safety
+/// The CPU must have NEON; lengths as for [`super::scalar::census_row_scalar`].
+#[target_feature(enable = "neon")]
+pub(super) unsafe fn census_row_neon(
+    image: Samples<'_>,
+    window: Window,
+    y: usize,
+    padded: &mut [u16],
+    bits: &mut [u64],
+) {
+    pad_window_rows(image, window, y, padded);
+    let width = image.size().0;
+    let (rx, ry) = (window.width / 2, window.height / 2);
+    let pw = width + 2 * rx;
+    let centre = image.row(y);
+    let n = window.width * window.height - 1;
+    let tolerance = vdupq_n_u16(window.tolerance);
+    // Where each neighbour of the window (centre skipped, in the reference's order) starts in
+    // `padded`, relative to the pixel.
+    let mut offsets = [0usize; 64];
+    let mut i = 0;
+    for dy in 0..window.height {
+        for dx in 0..window.width {
+            if dx != rx || dy != ry {
+                offsets[i] = dy * pw + dx;
+                i += 1;
+            }
+        }
+    }
+    let whole = width - width % 8;
+    for x in (0..whole).step_by(8) {
+        // SAFETY: x + 8 <= width, the length of `centre` and of `bits`; each padded row holds
+        // `pw = width + 2 * rx` samples and dx + x + 8 <= 2 * rx + width.
+        let threshold = vqsubq_u16(vld1q_u16(centre.as_ptr().add(x)), tolerance);
+        let mut acc = [vdupq_n_u16(0); 4];
+        // Neighbour i is census bit n - 1 - i: accumulator j takes the neighbours of bits
+        // 16j..16j + 16, highest bit (lowest i) first.
+        for (j, a) in acc.iter_mut().enumerate().rev() {
+            let first = n.saturating_sub(16 * j + 16);
+            let end = n.saturating_sub(16 * j);
+            let mut v = vdupq_n_u16(0);
+            for &offset in &offsets[first..end] {
+                let darker = vcltq_u16(vld1q_u16(padded.as_ptr().add(offset + x)), threshold);
+                // (v << 1) | (darker & 1).
+                v = vsliq_n_u16::<1>(darker, v);
+            }
+            *a = v;
+        }
+        // 32-bit [bits 16–31 : 0–15] and [48–63 : 32–47] for pixels 0–3 and 4–7, then the
+        // 64-bit strings two pixels at a time.
+        let (lo01, hi01) = (vzip1q_u16(acc[0], acc[1]), vzip2q_u16(acc[0], acc[1]));
+        let (lo23, hi23) = (vzip1q_u16(acc[2], acc[3]), vzip2q_u16(acc[2], acc[3]));
+        let (a, b) = (vreinterpretq_u32_u16(lo01), vreinterpretq_u32_u16(lo23));
+        let (c, d) = (vreinterpretq_u32_u16(hi01), vreinterpretq_u32_u16(hi23));
+        let out = bits.as_mut_ptr().add(x);
+        vst1q_u64(out, vreinterpretq_u64_u32(vzip1q_u32(a, b)));
+        vst1q_u64(out.add(2), vreinterpretq_u64_u32(vzip2q_u32(a, b)));
+        vst1q_u64(out.add(4), vreinterpretq_u64_u32(vzip1q_u32(c, d)));
+        vst1q_u64(out.add(6), vreinterpretq_u64_u32(vzip2q_u32(c, d)));
+    }
+    // The rest as the reference does it.
+    census_span_scalar(padded, window, centre, whole, bits);
 }

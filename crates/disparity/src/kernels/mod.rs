@@ -735,6 +735,8 @@ pub(crate) enum CensusKernel {
     /// [`CensusKernel::Gfni`] on the high bytes, for 8-bit images (see `census::is_byte_scaled`).
     #[cfg(target_arch = "x86_64")]
     GfniBytes,
+    #[cfg(target_arch = "aarch64")]
+    Neon,
 }
 
 impl CensusKernel {
@@ -749,6 +751,10 @@ impl CensusKernel {
                 Level::Avx2 => return CensusKernel::Avx2,
                 Level::Scalar => {}
             }
+        }
+        #[cfg(target_arch = "aarch64")]
+        if level == Level::Neon {
+            return CensusKernel::Neon;
         }
         let _ = level;
         CensusKernel::Generic
@@ -783,6 +789,9 @@ pub(crate) fn census_row(
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `CensusKernel::Avx2` is only chosen at the AVX2 level, detected on this CPU.
         CensusKernel::Avx2 => unsafe { avx2::census_row_avx2(image, window, y, padded, bits) },
+        #[cfg(target_arch = "aarch64")]
+        // SAFETY: `CensusKernel::Neon` is only chosen at the NEON level, detected on this CPU.
+        CensusKernel::Neon => unsafe { neon::census_row_neon(image, window, y, padded, bits) },
         CensusKernel::Generic => scalar::census_row_scalar(image, window, y, padded, bits),
     }
 }
