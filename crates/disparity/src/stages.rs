@@ -4,7 +4,7 @@
 //! throughput can be measured alone.
 
 use crate::cost::{infeasible_cost, AdRows, BtRow};
-use crate::kernels::layout::{fits, padded_lanes, padded_lanes_u8};
+use crate::kernels::layout::{padded_lanes, padded_lanes_u8};
 use crate::kernels::{self, features};
 use crate::{DisparityMap, GrayImage, Image, MatchingCost, SgmParams};
 
@@ -17,7 +17,7 @@ pub fn census(image: &GrayImage, params: &SgmParams) -> Image<u64> {
 
 /// The matching costs of every row as the aggregation computes them (census Hamming distance,
 /// plus the intensity term for AD-census as `params.matching_cost` says): in 8 bits where the
-/// aggregation runs 8-bit path costs (AVX-512, costs and penalties within the 8-bit bound), else
+/// aggregation runs 8-bit path costs (AVX-512 or NEON, costs and penalties within the 8-bit bound), else
 /// in 16; returns a checksum.
 pub fn matching_costs(
     left: &GrayImage,
@@ -29,7 +29,7 @@ pub fn matching_costs(
     let nd = params.range.count();
     let census_bits = (params.census.width * params.census.height - 1) as u32;
     let worst = infeasible_cost(census_bits, params.matching_cost);
-    let narrow = features().level.avx512() && fits(worst, params.p1, params.p2.max(params.p1));
+    let narrow = crate::aggregate::u8_passes(nd, worst, params.p1, params.p2);
     let mut row = vec![0u16; census_left.width() * padded_lanes(nd)];
     let mut row_u8 = vec![0u8; census_left.width() * padded_lanes_u8(nd)];
     let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());

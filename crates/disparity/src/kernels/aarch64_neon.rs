@@ -3,13 +3,16 @@
 //! [`super`] only when the CPU has NEON (every aarch64 Linux CPU does), and proptested against
 //! that scalar reference. Imports only [`super::layout`] and [`super::scalar`].
 //!
-//! 128-bit registers: 8 `u16` disparities per instruction in the path step, 16 Hamming
+//! 128-bit registers: 8 `u16` or 16 `u8` disparities per instruction in the path steps, 16 Hamming
 //! distances from 8 register loads in the cost row (`CNT` per byte, three pairwise additions),
 //! 8 pixels per step in the census transform.
 
 use std::arch::aarch64::*;
 
-use super::layout::{feasible, padded_lanes, AdRows, BandRow, PathIn, Samples, Window, BT_PAD, JUNK_COST};
+use super::layout::{
+    feasible, padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, PathInU8, Samples, Window, BT_PAD,
+    JUNK_COST, PAD_U8,
+};
 use super::scalar::{census_span_scalar, keep_smaller_scalar, pad_window_rows};
 
 /// NEON [`super::path_step`]: 8 disparities per instruction ([`path_step_neon_body`]).
@@ -45,7 +48,6 @@ pub(super) unsafe fn path_step_neon_body<const N: usize>(
     accumulate: bool,
 ) -> [u16; N] {
     let lanes = cost.len();
-    let nd = sum.len();
     let p1v = vdupq_n_u16(p1);
     let prev: [*const u16; N] = std::array::from_fn(|i| ins[i].prev.as_ptr());
     let out: [*mut u16; N] = {
@@ -67,23 +69,109 @@ pub(super) unsafe fn path_step_neon_body<const N: usize>(
             mins[i] = vminq_u16(mins[i], v);
             total = vaddq_u16(total, v);
         }
-        if k + 8 <= nd {
-            let dst = sum.as_mut_ptr().add(k);
-            if accumulate {
-                total = vaddq_u16(total, vld1q_u16(dst));
-            }
-            vst1q_u16(dst, total);
-        } else if k < nd {
-            let mut tmp = [0u16; 8];
-            vst1q_u16(tmp.as_mut_ptr(), total);
-            for (j, &t) in tmp[..nd - k].iter().enumerate() {
-                let d = &mut sum[k + j];
-                *d = if accumulate { d.wrapping_add(t) } else { t };
-            }
-        }
+        store_sums(sum, k, total, accumulate);
         k += 8;
     }
     std::array::from_fn(|i| vminvq_u16(mins[i]))
+}
+
+/// Stores (or with `accumulate` adds) the 8 path-cost sums `total` of disparities `k..k + 8`
+/// into `sum`, only those below `sum.len()`.
+#[inline(always)]
+unsafe fn store_sums(sum: &mut [u16], k: usize, mut total: uint16x8_t, accumulate: bool) {
+    let nd = sum.len();
+    if k + 8 <= nd {
+        // SAFETY: entries k..k + 8 of `sum`.
+        let dst = sum.as_mut_ptr().add(k);
+        if accumulate {
+            total = vaddq_u16(total, vld1q_u16(dst));
+        }
+        vst1q_u16(dst, total);
+    } else if k < nd {
+        let mut tmp = [0u16; 8];
+        vst1q_u16(tmp.as_mut_ptr(), total);
+        for (j, &t) in tmp[..nd - k].iter().enumerate() {
+            let d = &mut sum[k + j];
+            *d = if accumulate { d.wrapping_add(t) } else { t };
+        }
+    }
+}
+
+/// NEON [`super::path_step_u8`]: 16 disparities per instruction, the 16-bit sums by widening
+/// additions (`UADDW`, one per 8 lanes as for the `u16` sums). Inlined into the aggregation
+/// loops as [`path_step_neon_body`] is (there is no NEON row kernel: the passes step pixel by
+/// pixel).
+///
+/// # Safety
+/// The CPU must have NEON; lengths as checked by [`super::path_step_u8`].
+#[inline(always)]
+pub(super) unsafe fn path_step_u8_neon<const N: usize>(
+    cost: &[u8],
+    p1: u8,
+    ins: [PathInU8<'_>; N],
+    outs: [&mut [u8]; N],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> [u8; N] {
+    let lanes = cost.len();
+    let p1v = vdupq_n_u8(p1);
+    let prev: [*const u8; N] = std::array::from_fn(|i| ins[i].prev.as_ptr());
+    let out: [*mut u8; N] = {
+        let mut outs = outs;
+        std::array::from_fn(|i| outs[i].as_mut_ptr())
+    };
+    let jump: [uint8x16_t; N] =
+        std::array::from_fn(|i| vdupq_n_u8(ins[i].prev_min.saturating_add(ins[i].p2)));
+    let pmin: [uint8x16_t; N] = std::array::from_fn(|i| vdupq_n_u8(ins[i].prev_min));
+    let mut mins = [vdupq_n_u8(u8::MAX); N];
+    let mut k = 0;
+    while k < lanes {
+        // SAFETY (pointer accesses below): `k + 16 <= lanes` (lanes is a multiple of 32) and
+        // `prev`/`out` have `lanes + 2` entries; `store_sums` writes only below `nd`.
+        let c = vld1q_u8(cost.as_ptr().add(k));
+        let (mut low, mut high) = (vdupq_n_u16(0), vdupq_n_u16(0));
+        for i in 0..N {
+            let v = path_vector!(U8_NEON, c, prev[i].add(k), out[i].add(k + 1), p1v, jump[i], pmin[i]);
+            mins[i] = vminq_u8(mins[i], v);
+            low = vaddw_u8(low, vget_low_u8(v));
+            high = vaddw_high_u8(high, v);
+        }
+        store_sums(sum, k, low, accumulate);
+        store_sums(sum, k + 8, high, accumulate);
+        k += 16;
+    }
+    std::array::from_fn(|i| vminvq_u8(mins[i]))
+}
+
+/// [`super::cost_row_u8`] for NEON machines: each pixel's `u16` costs by [`cost_pixel_neon`],
+/// narrowed 16 lanes per step (exact: every cost is at most 255), [`PAD_U8`] from `nd` on.
+///
+/// # Safety
+/// The CPU must have NEON; lengths and bounds as checked by [`super::cost_row_u8`].
+#[target_feature(enable = "neon")]
+pub(super) unsafe fn cost_row_u8_neon(
+    left: &[u64],
+    right: &[u64],
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    ad: Option<AdRows<'_>>,
+    out: &mut [u8],
+) {
+    let (wide_lanes, narrow_lanes) = (padded_lanes(nd), padded_lanes_u8(nd));
+    let mut wide = vec![0u16; wide_lanes];
+    for (x, narrow) in out.chunks_exact_mut(narrow_lanes).enumerate() {
+        // SAFETY: as checked by the caller; `wide` holds `padded_lanes(nd)` entries.
+        cost_pixel_neon(left, right, x, min_disparity, nd, worst, &ad, &mut wide);
+        let (w, n) = (wide.as_ptr(), narrow.as_mut_ptr());
+        for k in (0..wide_lanes).step_by(16) {
+            // SAFETY: entries k..k + 16 of `wide` (a multiple of 16 long) and of `narrow` (at
+            // least as many lanes).
+            let packed = vqmovn_high_u16(vqmovn_u16(vld1q_u16(w.add(k))), vld1q_u16(w.add(k + 8)));
+            vst1q_u8(n.add(k), packed);
+        }
+        narrow[nd..].fill(PAD_U8);
+    }
 }
 
 /// NEON [`super::argmin`].

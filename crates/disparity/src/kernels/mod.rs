@@ -29,8 +29,8 @@ use layout::{
 /// lanes hold large values), `u8` lanes subtract first (`c + (best - prev_min)`, exact because
 /// the bracket lies in `0..=P2`); both are what the scalar references compute.
 /// `U8_512_REGISTERS` is the step alone on registers (`c, prev[d], prev[d - 1], prev[d + 1], P1,
-/// jump, prev_min`), for the row kernels that keep a path in registers. `U16_NEON` is the `u16`
-/// step on 128-bit NEON registers.
+/// jump, prev_min`), for the row kernels that keep a path in registers. `U16_NEON` and `U8_NEON`
+/// are the steps on 128-bit NEON registers.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 macro_rules! path_vector {
     (U16_512, $($rest:tt)*) => {
@@ -47,6 +47,9 @@ macro_rules! path_vector {
     };
     (U16_NEON, $($rest:tt)*) => {
         path_vector!(@ [vld1q_u16, vst1q_u16, vminq_u16, vqaddq_u16, vsubq_u16], cost_first, $($rest)*)
+    };
+    (U8_NEON, $($rest:tt)*) => {
+        path_vector!(@ [vld1q_u8, vst1q_u8, vminq_u8, vqaddq_u8, vsubq_u8], bracket_first, $($rest)*)
     };
     (U8_512_REGISTERS, $($rest:tt)*) => {
         path_vector!(@step [_mm512_min_epu8, _mm512_adds_epu8, _mm512_sub_epi8], bracket_first, $($rest)*)
@@ -134,15 +137,29 @@ impl Level {
         }
     }
 
-    /// Whether this is the AVX-512 level: the kernels that exist only there (the 8-bit path step,
-    /// the register row kernels, the fused winner-takes-all) run; the 8-bit passes pay off only
-    /// where they do. False on every other architecture.
+    /// Whether this is the AVX-512 level: the kernels that exist only there (the register row
+    /// kernels, the fused winner-takes-all) run. False on every other architecture.
     pub(crate) fn avx512(self) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self == Level::Avx512 {
             return true;
         }
         false
+    }
+
+    /// Whether the aggregation runs 8-bit path costs over `nd` disparities where they fit
+    /// ([`layout::fits`]): at the levels whose 8-bit step holds twice the `u16` step's lanes per
+    /// instruction and widens its sums cheaply (AVX-512 with its register row kernels; NEON, whose
+    /// `UADDW` widens 8 lanes in one instruction, where the 8-bit lanes take fewer registers: not
+    /// up to 16 disparities, which both pad to two). AVX2's byte sums cost more than the
+    /// narrower vectors save.
+    pub(crate) fn u8_passes(self, nd: usize) -> bool {
+        #[cfg(target_arch = "aarch64")]
+        if self == Level::Neon {
+            return padded_lanes_u8(nd) < 2 * padded_lanes(nd);
+        }
+        let _ = nd;
+        self.avx512()
     }
 }
 
@@ -387,6 +404,9 @@ pub(crate) fn path_step_u8<const N: usize>(
         // the kernel reads and writes were checked above.
         #[cfg(target_arch = "x86_64")]
         Level::Avx512 => unsafe { avx512::path_step_u8_avx512(cost, p1, ins, outs, sum, accumulate) },
+        // SAFETY: `Level::Neon` is only chosen when the CPU has NEON; lengths checked above.
+        #[cfg(target_arch = "aarch64")]
+        Level::Neon => unsafe { neon::path_step_u8_neon(cost, p1, ins, outs, sum, accumulate) },
         _ => scalar::path_step_u8_scalar(cost, p1, ins, outs, sum, accumulate),
     }
 }
@@ -519,8 +539,11 @@ pub(crate) fn cost_row_u8(
         Level::Avx512 | Level::Avx2 => unsafe {
             avx2::cost_row_u8_avx2(left, right, min_disparity, nd, worst, ad, out)
         },
-        // The 8-bit passes run only with AVX-512 (`Level::avx512`); elsewhere the reference.
-        _ => scalar::cost_row_u8_scalar(left, right, min_disparity, nd, worst, ad, out),
+        // SAFETY: `Level::Neon` is only chosen when the CPU has NEON; lengths and bounds were
+        // checked above.
+        #[cfg(target_arch = "aarch64")]
+        Level::Neon => unsafe { neon::cost_row_u8_neon(left, right, min_disparity, nd, worst, ad, out) },
+        Level::Scalar => scalar::cost_row_u8_scalar(left, right, min_disparity, nd, worst, ad, out),
     }
 }
 
