@@ -46,6 +46,8 @@ pub struct Stats {
     pub timings_ms: Timings,
     /// Million disparity evaluations per second of the matching stage: W·H·ndisp / seconds / 1e6.
     pub mde_per_s: f64,
+    /// The instruction set the matcher's kernels ran with (`scalar`, `avx2`, `avx512`, `neon`).
+    pub simd: &'static str,
     /// Peak working memory the matcher planned (aggregation buffers, per-thread rows), bytes.
     pub planned_matcher_bytes: u64,
 }
@@ -128,6 +130,7 @@ impl Stats {
             } else {
                 0.0
             },
+            simd: stereo_pipeline::simd_level(),
         }
     }
 }

@@ -47,6 +47,9 @@ pub use plan::{MemoryLimit, PipelineParams, Plan};
 pub use run::{DepthResult, Rectification, StageTimings};
 pub use sizes::parse_scaled;
 
+/// The instruction set the matcher's kernels run with here (`scalar`, `avx2`, `avx512`, `neon`;
+/// `STEREO_DISPARITY_SIMD` caps it). The maps are the same on every one.
+pub use stereo_disparity::stages::simd_level;
 pub use stereo_disparity::{
     parse_named, Adaptation, BmCost, BmParams, DisparityRange, Downscale, Named, PathCount, Preset, Search,
     SearchReport, SgmParams, Subpixel,
