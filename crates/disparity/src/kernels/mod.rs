@@ -3,7 +3,8 @@
 //! - [`layout`]: lane counts, paddings, sentinels and the kernels' plain input types; every
 //!   kernel file imports it, it imports nothing from the crate.
 //! - [`scalar`]: the readable reference of every kernel, and the fallback on every CPU.
-//! - `x86_avx2`, `x86_avx512`: the `std::arch` versions, one file per instruction set.
+//! - `x86_avx2`, `x86_avx512`, `aarch64_neon`: the `std::arch` versions, one file per instruction
+//!   set.
 //! - this module: [`Level`] and the cached CPU-feature check ([`features`]), and one dispatching
 //!   entry point per kernel (the only `match` on [`Level`] in the crate, together with
 //!   [`multiversion!`], which compiles a generic body once per level).
@@ -195,7 +196,7 @@ impl Features {
     }
 }
 
-/// The cached feature check. `STEREO_DISPARITY_SIMD=scalar|avx2|avx512` caps the level (for
+/// The cached feature check. `STEREO_DISPARITY_SIMD=scalar|avx2|avx512|neon` caps the level (for
 /// benchmarks and debugging); it never enables what the CPU lacks.
 pub(crate) fn features() -> Features {
     static FEATURES: OnceLock<Features> = OnceLock::new();
