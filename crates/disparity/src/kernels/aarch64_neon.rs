@@ -10,10 +10,10 @@
 use std::arch::aarch64::*;
 
 use super::layout::{
-    feasible, padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, PathInU8, Samples, Window, BT_PAD,
-    JUNK_COST, PAD_U8,
+    padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, PathInU8, Samples, Window, AD_LANE_MASKS, BT_PAD,
+    PAD_U8,
 };
-use super::scalar::{census_span_scalar, keep_smaller_scalar, pad_window_rows};
+use super::scalar::{census_costs_in_blocks, census_span_scalar, keep_smaller_scalar, pad_window_rows};
 
 /// NEON [`super::path_step`]: 8 disparities per instruction ([`path_step_neon_body`]).
 ///
@@ -279,10 +279,8 @@ pub(super) unsafe fn cost_bands_neon(
 }
 
 /// Pixel `x`'s costs from disparity `min_disparity` into `costs` (as the scalar reference's
-/// pixel): the census Hamming distances 16 disparities per step ([`hamming_block_neon`]) where
-/// all 16 right pixels are inside the row, the reference's step at the ends of the feasible
-/// range, `worst` where the right pixel is outside the row, [`JUNK_COST`] past `nd`, then the AD
-/// term ([`add_ad_neon`]).
+/// pixel): the census Hamming distances by [`census_costs_in_blocks`] with
+/// [`hamming_block_neon`], then the AD term ([`add_ad_neon`]).
 ///
 /// # Safety
 /// The CPU must have NEON; `costs.len()` is a multiple of 16 and at least `nd`, the BT rows (if
@@ -300,39 +298,16 @@ unsafe fn cost_pixel_neon(
     ad: &Option<AdRows<'_>>,
     costs: &mut [u16],
 ) {
-    let width = left.len();
-    let l = left[x];
-    let (lo, hi, first) = feasible(x, width, min_disparity, nd);
-    costs[..lo].fill(worst);
-    // Disparity index k has its right pixel at first - k.
-    let scalar = |costs: &mut [u16], k: usize| {
-        costs[k] = (l ^ right[(first - k as i64) as usize]).count_ones() as u16;
-    };
-    let mut k = lo;
-    while k < hi && !k.is_multiple_of(16) {
-        scalar(costs, k);
-        k += 1;
-    }
-    while k + 16 <= hi {
-        // SAFETY: k..k + 16 are feasible, so right pixels first - k - 15 ..= first - k are
-        // inside the row; entries k..k + 16 are this pixel's (k + 16 <= hi <= costs.len()).
-        hamming_block_neon(
-            l,
-            right.as_ptr().add((first - k as i64) as usize - 15),
-            costs.as_mut_ptr().add(k),
-        );
-        k += 16;
-    }
-    while k < hi {
-        scalar(costs, k);
-        k += 1;
-    }
-    costs[hi..nd].fill(worst);
-    costs[nd..].fill(JUNK_COST);
+    // SAFETY: `hamming_block_neon` reads 16 strings and writes 16 entries, as the driver
+    // allows; the CPU has NEON (this function's precondition).
+    let (lo, hi, first) =
+        census_costs_in_blocks(left, right, x, min_disparity, nd, worst, costs, |l, r, dst| {
+            hamming_block_neon(l, r, dst)
+        });
     if let Some(ad) = ad {
         // SAFETY: `lo..hi` are the feasible disparities of `x`, whose entries start at `costs`
         // (a multiple of 16 long, so every 16-entry block below `hi` is inside it).
-        add_ad_neon(ad, costs.as_mut_ptr(), x, width, first, lo, hi);
+        add_ad_neon(ad, costs.as_mut_ptr(), x, left.len(), first, lo, hi);
     }
 }
 
@@ -357,18 +332,6 @@ unsafe fn hamming_block_neon(l: u64, r: *const u64, dst: *mut u16) {
     vst1q_u16(dst, vmovl_u8(vget_low_u8(reversed)));
     vst1q_u16(dst.add(8), vmovl_high_u8(reversed));
 }
-
-/// Lane masks for [`add_ad_neon`]: 16 entries read from `MASKS[16 - n..]` are set from lane
-/// `n` on; from `MASKS[32 - n..]` below lane `n`.
-static MASKS: [u16; 48] = {
-    let mut m = [0u16; 48];
-    let mut i = 16;
-    while i < 32 {
-        m[i] = u16::MAX;
-        i += 1;
-    }
-    m
-};
 
 /// Adds the AD term `min(weight · BT, cap)` of pixel `x` to its costs at `dst` for the feasible
 /// disparities `lo..hi` (as the AD part of the scalar reference), 16 disparities per step.
@@ -400,11 +363,11 @@ unsafe fn add_ad_neon(
     while k < hi {
         let below = lo.saturating_sub(k);
         let upto = (hi - k).min(16);
-        // SAFETY: `below <= 15` and `1 <= upto <= 16`: every read below is inside `MASKS`.
+        // SAFETY: `below <= 15` and `1 <= upto <= 16`: every read below is inside `AD_LANE_MASKS`.
         let mask = |half: usize| {
             vandq_u16(
-                vld1q_u16(MASKS.as_ptr().add(16 - below + 8 * half)),
-                vld1q_u16(MASKS.as_ptr().add(32 - upto + 8 * half)),
+                vld1q_u16(AD_LANE_MASKS.as_ptr().add(16 - below + 8 * half)),
+                vld1q_u16(AD_LANE_MASKS.as_ptr().add(32 - upto + 8 * half)),
             )
         };
         // SAFETY: the right rows are padded by `BT_PAD` (32) entries at both ends, so the 16

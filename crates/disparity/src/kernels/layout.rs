@@ -57,6 +57,19 @@ pub(crate) const MAX_AD_CAP: u8 = 127;
 /// feasible one.
 pub(crate) const BT_PAD: usize = 32;
 
+/// Lane masks for the SIMD kernels' AD term over a pixel's feasible disparities: 16 entries read
+/// from `AD_LANE_MASKS[16 - n..]` are set from lane `n` on; from `AD_LANE_MASKS[32 - n..]` below
+/// lane `n`.
+pub(crate) static AD_LANE_MASKS: [u16; 48] = {
+    let mut m = [0u16; 48];
+    let mut i = 16;
+    while i < 32 {
+        m[i] = u16::MAX;
+        i += 1;
+    }
+    m
+};
+
 /// The Birchfield–Tomasi inputs of one image row in 8-bit grey levels: per pixel its value and
 /// the minimum and maximum of it and its two half-pixel interpolations with the neighbours
 /// (clamped at the row ends), each rounded from the 16-bit samples (`v / 257`). The right row is

@@ -131,6 +131,56 @@ fn cost_pixel_scalar(
     costs[nd..].fill(JUNK_COST);
 }
 
+/// The census part of a SIMD kernel's pixel step (the Hamming distances of
+/// [`cost_pixel_scalar`], without the AD term): `block(l, r, dst)` stores the 16 distances of
+/// disparities `k..k + 16` at `dst` (`r` the 16 right census strings from the lowest address,
+/// the highest disparity's first) wherever all 16 right pixels are inside the row, this loop's
+/// step at the ends of the feasible range, `worst` where the right pixel is outside the row,
+/// [`JUNK_COST`] past `nd`. Returns [`feasible`]'s `(lo, hi, first)` for the AD term.
+///
+/// # Safety
+/// `costs.len()` is a multiple of 16 and at least `nd`; `block` may write the 16 entries at
+/// `dst` and read the 16 strings at `r`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn census_costs_in_blocks(
+    left: &[u64],
+    right: &[u64],
+    x: usize,
+    min_disparity: i32,
+    nd: usize,
+    worst: u16,
+    costs: &mut [u16],
+    block: impl Fn(u64, *const u64, *mut u16),
+) -> (usize, usize, i64) {
+    let width = left.len();
+    let l = left[x];
+    let (lo, hi, first) = feasible(x, width, min_disparity, nd);
+    costs[..lo].fill(worst);
+    // Disparity index k has its right pixel at first - k.
+    let one = |costs: &mut [u16], k: usize| {
+        costs[k] = (l ^ right[(first - k as i64) as usize]).count_ones() as u16;
+    };
+    let mut k = lo;
+    while k < hi && !k.is_multiple_of(16) {
+        one(costs, k);
+        k += 1;
+    }
+    while k + 16 <= hi {
+        // SAFETY: k..k + 16 are feasible, so right pixels first - k - 15 ..= first - k are
+        // inside the row; entries k..k + 16 are this pixel's (k + 16 <= hi <= costs.len()).
+        block(l, right.as_ptr().add((first - k as i64) as usize - 15), costs.as_mut_ptr().add(k));
+        k += 16;
+    }
+    while k < hi {
+        one(costs, k);
+        k += 1;
+    }
+    costs[hi..nd].fill(worst);
+    costs[nd..].fill(JUNK_COST);
+    (lo, hi, first)
+}
+
 /// The readable reference of [`super::cost_row_u8`] (the loop of [`cost_row_scalar`] in 8 bits).
 #[inline(always)]
 pub(crate) fn cost_row_u8_scalar(

@@ -5,10 +5,11 @@
 use std::arch::x86_64::*;
 
 use super::layout::{
-    feasible, padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, Samples, Window, BT_PAD, JUNK_COST,
-    PAD_U8,
+    padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, Samples, Window, AD_LANE_MASKS, BT_PAD, PAD_U8,
 };
-use super::scalar::{bt_fill_in_order, census_span_scalar, keep_smaller_scalar, pad_window_rows};
+use super::scalar::{
+    bt_fill_in_order, census_costs_in_blocks, census_span_scalar, keep_smaller_scalar, pad_window_rows,
+};
 
 /// Minimum of the 16 unsigned 16-bit lanes.
 #[inline]
@@ -200,18 +201,6 @@ pub(super) unsafe fn keep_smaller_avx2(costs: &[u16], first_index: u16, best: &m
     keep_smaller_scalar(&costs[k..], first_index + k as u16, &mut best[k..], &mut index[k..]);
 }
 
-/// Lane masks for [`add_ad_avx2`]: 16 entries read from `MASKS[16 - n..]` are set from lane
-/// `n` on; from `MASKS[32 - n..]` below lane `n`.
-static MASKS: [u16; 48] = {
-    let mut m = [0u16; 48];
-    let mut i = 16;
-    while i < 32 {
-        m[i] = u16::MAX;
-        i += 1;
-    }
-    m
-};
-
 /// Adds the AD term `min(weight · BT, cap)` of pixel `x` to its costs at `dst` for the feasible
 /// disparities `lo..hi` (as the AD part of [`super::scalar::cost_row_scalar`]), 16 disparities
 /// per step.
@@ -246,10 +235,10 @@ unsafe fn add_ad_avx2(
     while k < hi {
         let below = lo.saturating_sub(k);
         let upto = (hi - k).min(16);
-        // SAFETY: `below <= 15` and `1 <= upto <= 16`: both 16-entry reads are inside `MASKS`.
+        // SAFETY: `below <= 15` and `1 <= upto <= 16`: both 16-entry reads are inside `AD_LANE_MASKS`.
         let mask = _mm256_and_si256(
-            _mm256_loadu_si256(MASKS.as_ptr().add(16 - below).cast()),
-            _mm256_loadu_si256(MASKS.as_ptr().add(32 - upto).cast()),
+            _mm256_loadu_si256(AD_LANE_MASKS.as_ptr().add(16 - below).cast()),
+            _mm256_loadu_si256(AD_LANE_MASKS.as_ptr().add(32 - upto).cast()),
         );
         // SAFETY: as in `add_ad_avx512`, the 16 bytes read at `i` are inside the padded rows.
         let i = (base + k as i64) as usize;
@@ -314,10 +303,8 @@ pub(super) unsafe fn cost_bands_avx2(
 }
 
 /// Pixel `x`'s costs from disparity `min_disparity` into `costs` (as
-/// [`super::scalar::cost_bands_scalar`]'s pixel): the census Hamming distances 16 disparities
-/// per step ([`hamming_block_avx2`]) where all 16 right pixels are inside the row, the scalar
-/// reference's step elsewhere (the ends of the feasible range), `worst` where the right pixel is
-/// outside the row, [`JUNK_COST`] past `nd`, then the AD term ([`add_ad_avx2`]).
+/// [`super::scalar::cost_bands_scalar`]'s pixel): the census Hamming distances by
+/// [`census_costs_in_blocks`] with [`hamming_block_avx2`], then the AD term ([`add_ad_avx2`]).
 ///
 /// # Safety
 /// The CPU must have AVX2 and POPCNT; `costs.len()` is a multiple of 16 and at least `nd`, the BT
@@ -335,36 +322,16 @@ unsafe fn cost_pixel_avx2(
     ad: &Option<AdRows<'_>>,
     costs: &mut [u16],
 ) {
-    let width = left.len();
-    let l = left[x];
-    let (lo, hi, first) = feasible(x, width, min_disparity, nd);
-    costs[..lo].fill(worst);
-    // Disparity index k has its right pixel at first - k.
-    let scalar = |costs: &mut [u16], k: usize| {
-        costs[k] = (l ^ right[(first - k as i64) as usize]).count_ones() as u16;
-    };
-    let mut k = lo;
-    while k < hi && !k.is_multiple_of(16) {
-        scalar(costs, k);
-        k += 1;
-    }
-    while k + 16 <= hi {
-        // SAFETY: k..k + 16 are feasible, so right pixels first - k - 15 ..= first - k are
-        // inside the row; entries k..k + 16 are this pixel's (k + 16 <= hi <= costs.len()).
-        let block = hamming_block_avx2(l, right.as_ptr().add((first - k as i64) as usize - 15));
-        _mm256_storeu_si256(costs.as_mut_ptr().add(k).cast(), block);
-        k += 16;
-    }
-    while k < hi {
-        scalar(costs, k);
-        k += 1;
-    }
-    costs[hi..nd].fill(worst);
-    costs[nd..].fill(JUNK_COST);
+    // SAFETY: `hamming_block_avx2` reads 16 strings and its store writes 16 entries, as the
+    // driver allows; the CPU has AVX2 (this function's precondition).
+    let (lo, hi, first) =
+        census_costs_in_blocks(left, right, x, min_disparity, nd, worst, costs, |l, r, dst| {
+            _mm256_storeu_si256(dst.cast(), hamming_block_avx2(l, r))
+        });
     if let Some(ad) = ad {
         // SAFETY: `lo..hi` are the feasible disparities of `x`, whose entries start at `costs`
         // (a multiple of 16 long, so every 16-entry block below `hi` is inside it).
-        add_ad_avx2(ad, costs.as_mut_ptr(), x, width, first, lo, hi);
+        add_ad_avx2(ad, costs.as_mut_ptr(), x, left.len(), first, lo, hi);
     }
 }
 
