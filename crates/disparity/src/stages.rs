@@ -17,8 +17,8 @@ pub fn census(image: &GrayImage, params: &SgmParams) -> Image<u64> {
 
 /// The matching costs of every row as the aggregation computes them (census Hamming distance,
 /// plus the intensity term for AD-census as `params.matching_cost` says): in 8 bits where the
-/// aggregation runs 8-bit path costs (AVX-512 or NEON, costs and penalties within the 8-bit bound), else
-/// in 16; returns a checksum.
+/// aggregation runs 8-bit path costs (AVX-512 or NEON, costs and penalties within the 8-bit
+/// bound), else in 16; returns a checksum.
 pub fn matching_costs(
     left: &GrayImage,
     right: &GrayImage,
