@@ -576,11 +576,12 @@ pub fn write_summary(out: &mut impl Write, stats: &Stats) -> io::Result<()> {
     let t = &stats.timings_ms;
     writeln!(
         out,
-        "time ms       load {:.1}{}  match {:.1} ({:.0} MDE/s)  triangulate {:.1}  write {:.1}  total {:.1}",
+        "time ms       load {:.1}{}  match {:.1} ({:.0} MDE/s, {})  triangulate {:.1}  write {:.1}  total {:.1}",
         t.load,
         t.remap.map(|r| format!("  rectify {r:.1}")).unwrap_or_default(),
         t.match_,
         stats.mde_per_s,
+        stats.simd,
         t.triangulate,
         t.write,
         t.total
