@@ -119,15 +119,14 @@ pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPla
         let (rows, overlap) = tests::STRIPS.get().map_or((rows, overlap), |s| (s.rows, s.overlap));
         // The passes keep each strip row's matching costs for the second pass where that fits
         // the budget next to the strips planned above (so the strips, and the result, do not
-        // depend on it): the `u16` passes and NEON's 8-bit passes always, AVX-512's 8-bit passes
-        // (whose cost rows VPOPCNTDQ computes faster than a fresh buffer's page faults cost) only
-        // where the strip buffers are kept between calls.
+        // depend on it): the `u16` passes always, 8-bit passes whose level remakes its cost rows
+        // (`Level::remakes_u8_cost_rows`) only where the strip buffers are kept between calls.
         let u8_passes = crate::aggregate::u8_passes(nd, worst_cost(params), params.p1, params.p2);
         let cost_row = crate::aggregate::cost_row_bytes(width, nd, u8_passes);
         let strip_bytes = rows.saturating_mul(per_row);
         let shared_bytes = rows.saturating_mul(cost_row);
         let with_costs = fixed.saturating_add(strip_bytes).saturating_add(shared_bytes);
-        let recompute = u8_passes && crate::kernels::features().level.avx512();
+        let recompute = u8_passes && crate::kernels::features().level.remakes_u8_cost_rows();
         let shared_costs = (!recompute || crate::buffer::keeping())
             && !matches!(params.max_memory, Some(m) if with_costs > m);
         #[cfg(test)]

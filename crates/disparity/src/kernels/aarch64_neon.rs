@@ -5,7 +5,7 @@
 //!
 //! 128-bit registers: 8 `u16` or 16 `u8` disparities per instruction in the path steps, 16 Hamming
 //! distances from 8 register loads in the cost row (`CNT` per byte, three pairwise additions),
-//! 8 pixels per step in the census transform.
+//! 8 pixels per step in the census transform. The 8-bit passes' row kernel is in [`row`].
 
 use std::arch::aarch64::*;
 
@@ -14,6 +14,9 @@ use super::layout::{
     PAD_U8,
 };
 use super::scalar::{census_costs_in_blocks, census_span_scalar, keep_smaller_scalar, pad_window_rows};
+
+mod row;
+pub(super) use row::row_neon;
 
 /// NEON [`super::path_step`]: 8 disparities per instruction ([`path_step_neon_body`]).
 ///
@@ -99,8 +102,8 @@ unsafe fn store_sums(sum: &mut [u16], k: usize, mut total: uint16x8_t, accumulat
 
 /// NEON [`super::path_step_u8`]: 16 disparities per instruction, the 16-bit sums by widening
 /// additions (`UADDW`, one per 8 lanes as for the `u16` sums). Inlined into the aggregation
-/// loops as [`path_step_neon_body`] is (there is no NEON row kernel: the passes step pixel by
-/// pixel).
+/// loops as [`path_step_neon_body`] is, for the warm-up rows and for vectors longer than the
+/// register row kernel ([`row_neon`]) keeps.
 ///
 /// # Safety
 /// The CPU must have NEON; lengths as checked by [`super::path_step_u8`].

@@ -30,8 +30,8 @@ use layout::{
 /// lanes hold large values), `u8` lanes subtract first (`c + (best - prev_min)`, exact because
 /// the bracket lies in `0..=P2`); both are what the scalar references compute.
 /// `U8_512_REGISTERS` is the step alone on registers (`c, prev[d], prev[d - 1], prev[d + 1], P1,
-/// jump, prev_min`), for the row kernels that keep a path in registers. `U16_NEON` and `U8_NEON`
-/// are the steps on 128-bit NEON registers.
+/// jump, prev_min`), for the row kernels that keep a path in registers (`U8_NEON_REGISTERS` its
+/// NEON twin). `U16_NEON` and `U8_NEON` are the steps on 128-bit NEON registers.
 #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 macro_rules! path_vector {
     (U16_512, $($rest:tt)*) => {
@@ -54,6 +54,9 @@ macro_rules! path_vector {
     };
     (U8_512_REGISTERS, $($rest:tt)*) => {
         path_vector!(@step [_mm512_min_epu8, _mm512_adds_epu8, _mm512_sub_epi8], bracket_first, $($rest)*)
+    };
+    (U8_NEON_REGISTERS, $($rest:tt)*) => {
+        path_vector!(@step [vminq_u8, vqaddq_u8, vsubq_u8], bracket_first, $($rest)*)
     };
     (@ [$load:ident, $store:ident, $min:ident, $adds:ident, $sub:ident], $order:ident,
      $c:expr, $prev:expr, $out:expr, $p1:expr, $jump:expr, $pmin:expr) => {{
@@ -160,6 +163,14 @@ impl Level {
             return padded_lanes_u8(nd) < 2 * padded_lanes(nd);
         }
         let _ = nd;
+        self.avx512()
+    }
+
+    /// Whether this level's 8-bit passes make each strip row's matching costs again in the
+    /// second pass of a one-shot call instead of keeping the first pass's: AVX-512's VPOPCNTDQ
+    /// cost rows take less time than a fresh buffer's page faults; NEON's are dearer, and its
+    /// passes keep them (`memory::plan`).
+    pub(crate) fn remakes_u8_cost_rows(self) -> bool {
         self.avx512()
     }
 }
@@ -657,12 +668,21 @@ unsafe fn median3x3_row_lanes_avx2(rows: [&[f32]; 3], out: &mut [f32]) {
     scalar::median3x3_row_lanes(rows, out)
 }
 
-/// The most lanes the register kernel keeps (four 64-lane registers); longer vectors take the
-/// per-pixel kernel.
+/// The most lanes the AVX-512 register kernel keeps (four 64-lane registers); longer vectors
+/// take the per-pixel kernel.
 const MAX_REGISTER_LANES: usize = 256;
+
+/// The most lanes the NEON register kernel keeps (eight 16-lane registers of the 32; more would
+/// spill the horizontal path to the stack).
+#[cfg(target_arch = "aarch64")]
+const MAX_REGISTER_LANES_NEON: usize = 128;
 
 /// Whether [`row_u8`] has a kernel for this level and lane count.
 pub(crate) fn row_u8_available(level: Level, lanes: usize) -> bool {
+    #[cfg(target_arch = "aarch64")]
+    if level == Level::Neon {
+        return lanes <= MAX_REGISTER_LANES_NEON;
+    }
     level.avx512() && lanes <= MAX_REGISTER_LANES
 }
 
@@ -677,7 +697,7 @@ pub(crate) fn row_u8_available(level: Level, lanes: usize) -> bool {
 /// the caller then steps pixel by pixel.
 #[allow(clippy::too_many_arguments)]
 // Elsewhere there is no register kernel: only the lengths are checked before returning `false`.
-#[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
+#[cfg_attr(not(any(target_arch = "x86_64", target_arch = "aarch64")), allow(unused_variables))]
 pub(crate) fn row_u8<const K: usize>(
     level: Level,
     cost: &[u8],
@@ -742,7 +762,29 @@ pub(crate) fn row_u8<const K: usize>(
         }
         true
     }
-    #[cfg(not(target_arch = "x86_64"))]
+    #[cfg(target_arch = "aarch64")]
+    {
+        macro_rules! run {
+            ($nv:literal) => {
+                // SAFETY: `row_u8_available` chose NEON (only when the CPU has it); the lengths
+                // were checked above and `lanes == 16 * $nv`.
+                unsafe {
+                    neon::row_neon::<$nv, K>(
+                        cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing,
+                    )
+                }
+            };
+        }
+        // `lanes` is a multiple of 32, at most MAX_REGISTER_LANES_NEON.
+        match lanes / 16 {
+            2 => run!(2),
+            4 => run!(4),
+            6 => run!(6),
+            _ => run!(8),
+        }
+        true
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
     false
 }
 
