@@ -54,8 +54,8 @@ pub(crate) struct WtaScratch {
     /// Right view, indexed by `width - 1 - xr`: the best cost so far and its disparity index.
     right_cost: Vec<u16>,
     right_index: Vec<u16>,
-    /// Left view: each pixel's winning disparity index (fused AVX-512 kernel).
-    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    /// Left view: each pixel's winning disparity index (fused AVX-512 and NEON kernels).
+    #[cfg_attr(not(any(target_arch = "x86_64", target_arch = "aarch64")), allow(dead_code))]
     left_best: Vec<u16>,
     /// The winner's cost and its two neighbours' (the winner's own where it has none), for the
     /// subpixel fits done 16 pixels at a time after the row (fused AVX-512 kernel).
@@ -98,8 +98,52 @@ pub(crate) fn select_row(
         // SAFETY: the AVX-512 level was detected on this CPU.
         return unsafe { fused::select_row_avx512(costs, width, nd, sel, scratch, out) };
     }
+    #[cfg(target_arch = "aarch64")]
+    if kernels::features().level == Level::Neon
+        && nd <= fused_neon::MAX_DISPARITIES
+        && width < usize::from(NO_MATCH)
+    {
+        // SAFETY: the NEON level is only chosen when the CPU has NEON.
+        return unsafe { fused_neon::select_row_neon(costs, width, nd, sel, scratch, out) };
+    }
     select_row_levels(costs, width, nd, sel, scratch, out)
 }
+
+/// The end of the fused kernels' sweep: stores the right view's final winners (`final_index[k]`,
+/// disparity index `k`, is right pixel `min − 1 + k` in `right_index`'s `width − 1 − xr` order),
+/// then runs the left-right check on every selected pixel of `out` (winners in `left_best`).
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+fn check_left_right(
+    sel: Selection,
+    final_index: &[u16],
+    right_index: &mut [u16],
+    left_best: &[u16],
+    out: &mut [f32],
+) {
+    let (width, min) = (right_index.len(), sel.range.min as i64);
+    for (k, &kr) in final_index.iter().enumerate() {
+        let q = min - 1 + k as i64;
+        if (0..width as i64).contains(&q) {
+            right_index[q as usize] = kr;
+        }
+    }
+    let max_diff = sel.lr_max_diff.unwrap_or(f32::INFINITY);
+    for (x, o) in out.iter_mut().enumerate() {
+        if o.is_nan() {
+            continue;
+        }
+        let best = usize::from(left_best[x]);
+        let xr = x as i64 - min - best as i64;
+        if let Err(occluded) =
+            left_right_check(right_index, xr, best as f32, 0, max_diff, sel.lr_left_neighbour)
+        {
+            *o = lr_failure(occluded);
+        }
+    }
+}
+
+#[cfg(target_arch = "aarch64")]
+mod fused_neon;
 
 kernels::multiversion! {
     /// [`select_row_generic`] compiled for the detected level, with the SIMD kernels inlined.
@@ -181,8 +225,7 @@ fn select_row_generic(
 mod fused {
     use std::arch::x86_64::*;
 
-    use super::{feasible_left, tagged_nan, PixelStatus, Selection, WtaScratch, NO_MATCH};
-    use crate::winner::left_right_check;
+    use super::{check_left_right, feasible_left, tagged_nan, PixelStatus, Selection, WtaScratch, NO_MATCH};
     use crate::Subpixel;
 
     /// Registers of 32 lanes per window array: up to 8, i.e. 256 disparities.
@@ -346,25 +389,7 @@ mod fused {
             // SAFETY: 32 lanes into `lanes[32 j..32 j + 32]`, `j < NV <= MAX_VECTORS`.
             _mm512_storeu_si512(lanes.as_mut_ptr().add(32 * j).cast(), *v);
         }
-        for (k, &kr) in lanes[..nd].iter().enumerate() {
-            let q = min - 1 + k as i64;
-            if (0..width as i64).contains(&q) {
-                right_index[q as usize] = kr;
-            }
-        }
-        let max_diff = sel.lr_max_diff.unwrap_or(f32::INFINITY);
-        for (x, o) in out[..width].iter_mut().enumerate() {
-            if o.is_nan() {
-                continue;
-            }
-            let best = usize::from(left_best[x]);
-            let xr = x as i64 - min - best as i64;
-            if let Err(occluded) =
-                left_right_check(right_index, xr, best as f32, 0, max_diff, sel.lr_left_neighbour)
-            {
-                *o = super::lr_failure(occluded);
-            }
-        }
+        check_left_right(sel, &lanes[..nd], right_index, left_best, &mut out[..width]);
     }
 
     /// Adds [`crate::winner::subpixel_offset`] of each pixel's `around` costs to its integer disparity in
@@ -533,6 +558,13 @@ mod tests {
                 // SAFETY: AVX-512 is supported (checked above); the lengths fit.
                 unsafe { fused::select_row_avx512(&costs, width, nd, sel, &mut scratch, &mut f) };
                 runs.push(("fused", f));
+            }
+            #[cfg(target_arch = "aarch64")]
+            if kernels::supported_levels().contains(&Level::Neon) && nd <= fused_neon::MAX_DISPARITIES && width < usize::from(NO_MATCH) {
+                let mut f = vec![0f32; width];
+                // SAFETY: NEON is supported (checked above); the lengths fit.
+                unsafe { fused_neon::select_row_neon(&costs, width, nd, sel, &mut scratch, &mut f) };
+                runs.push(("fused NEON", f));
             }
             for (name, got) in runs {
                 for (x, (a, b)) in got.iter().zip(&expected).enumerate() {
