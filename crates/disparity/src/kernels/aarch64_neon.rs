@@ -11,7 +11,6 @@ use std::arch::aarch64::*;
 
 use super::layout::{
     padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, PathInU8, Samples, Window, AD_LANE_MASKS, BT_PAD,
-    PAD_U8,
 };
 use super::scalar::{census_costs_in_blocks, census_span_scalar, keep_smaller_scalar, pad_window_rows};
 
@@ -146,8 +145,9 @@ pub(super) unsafe fn path_step_u8_neon<const N: usize>(
     std::array::from_fn(|i| vminvq_u8(mins[i]))
 }
 
-/// [`super::cost_row_u8`] for NEON machines: each pixel's `u16` costs by [`cost_pixel_neon`],
-/// narrowed 16 lanes per step (exact: every cost is at most 255), [`PAD_U8`] from `nd` on.
+/// [`super::cost_row_u8`] for NEON machines: each pixel's costs made in 8 bits
+/// ([`cost_pixel_u8_neon`]: census distances as `CNT` leaves them, the AD term narrowed before
+/// it is added), [`super::layout::PAD_U8`] from `nd` on. No `u16` row in between: every cost is at most 255.
 ///
 /// # Safety
 /// The CPU must have NEON; lengths and bounds as checked by [`super::cost_row_u8`].
@@ -161,19 +161,41 @@ pub(super) unsafe fn cost_row_u8_neon(
     ad: Option<AdRows<'_>>,
     out: &mut [u8],
 ) {
-    let (wide_lanes, narrow_lanes) = (padded_lanes(nd), padded_lanes_u8(nd));
-    let mut wide = vec![0u16; wide_lanes];
-    for (x, narrow) in out.chunks_exact_mut(narrow_lanes).enumerate() {
-        // SAFETY: as checked by the caller; `wide` holds `padded_lanes(nd)` entries.
-        cost_pixel_neon(left, right, x, min_disparity, nd, worst, &ad, &mut wide);
-        let (w, n) = (wide.as_ptr(), narrow.as_mut_ptr());
-        for k in (0..wide_lanes).step_by(16) {
-            // SAFETY: entries k..k + 16 of `wide` (a multiple of 16 long) and of `narrow` (at
-            // least as many lanes).
-            let packed = vqmovn_high_u16(vqmovn_u16(vld1q_u16(w.add(k))), vld1q_u16(w.add(k + 8)));
-            vst1q_u8(n.add(k), packed);
-        }
-        narrow[nd..].fill(PAD_U8);
+    let lanes = padded_lanes_u8(nd);
+    for (x, costs) in out.chunks_exact_mut(lanes).enumerate() {
+        // SAFETY: as checked by the caller; `costs` holds `padded_lanes_u8(nd)` entries, a
+        // multiple of 16.
+        cost_pixel_u8_neon(left, right, x, min_disparity, nd, worst as u8, &ad, costs);
+    }
+}
+
+/// [`cost_pixel_neon`] in 8 bits: the costs of pixel `x` into `costs`.
+///
+/// # Safety
+/// The CPU must have NEON; `costs.len()` is a multiple of 16 and at least `nd`, the BT rows (if
+/// any) are padded by [`BT_PAD`].
+#[inline]
+#[target_feature(enable = "neon")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn cost_pixel_u8_neon(
+    left: &[u64],
+    right: &[u64],
+    x: usize,
+    min_disparity: i32,
+    nd: usize,
+    worst: u8,
+    ad: &Option<AdRows<'_>>,
+    costs: &mut [u8],
+) {
+    // SAFETY: `hamming_bytes_neon` reads 16 strings and writes 16 entries, as the driver
+    // allows; the CPU has NEON (this function's precondition).
+    let (lo, hi, first) =
+        census_costs_in_blocks(left, right, x, min_disparity, nd, worst, costs, |l, r, dst| {
+            vst1q_u8(dst, hamming_bytes_neon(l, r))
+        });
+    if let Some(ad) = ad {
+        // SAFETY: as in `cost_pixel_neon`.
+        add_ad_u8_neon(ad, costs.as_mut_ptr(), x, left.len(), first, lo, hi);
     }
 }
 
@@ -324,6 +346,18 @@ unsafe fn cost_pixel_neon(
 #[inline]
 #[target_feature(enable = "neon")]
 unsafe fn hamming_block_neon(l: u64, r: *const u64, dst: *mut u16) {
+    let distances = hamming_bytes_neon(l, r);
+    vst1q_u16(dst, vmovl_u8(vget_low_u8(distances)));
+    vst1q_u16(dst.add(8), vmovl_high_u8(distances));
+}
+
+/// The 16 distances of [`hamming_block_neon`] as bytes, in disparity order.
+///
+/// # Safety
+/// The CPU must have NEON; `r` points at 16 readable `u64`.
+#[inline]
+#[target_feature(enable = "neon")]
+unsafe fn hamming_bytes_neon(l: u64, r: *const u64) -> uint8x16_t {
     let lv = vreinterpretq_u8_u64(vdupq_n_u64(l));
     let count = |i: usize| vcntq_u8(veorq_u8(vld1q_u8(r.add(2 * i).cast()), lv));
     // Strings 4j..4j + 4, two byte sums each; then 8j..8j + 8, four; then all 16 in memory order.
@@ -331,9 +365,47 @@ unsafe fn hamming_block_neon(l: u64, r: *const u64, dst: *mut u16) {
     let q1 = vpaddq_u8(vpaddq_u8(count(4), count(5)), vpaddq_u8(count(6), count(7)));
     let sums = vpaddq_u8(q0, q1);
     // Lowest address is the highest disparity: reverse the 16 bytes.
-    let reversed = vrev64q_u8(vextq_u8::<8>(sums, sums));
-    vst1q_u16(dst, vmovl_u8(vget_low_u8(reversed)));
-    vst1q_u16(dst.add(8), vmovl_high_u8(reversed));
+    vrev64q_u8(vextq_u8::<8>(sums, sums))
+}
+
+/// Calls `block(k, bt, below, upto)` for each 16-disparity block `k..k + 16` (`k` a multiple of
+/// 16) that holds feasible disparities of pixel `x`, with `bt` its 16 Birchfield–Tomasi
+/// differences (as the AD part of the scalar reference) and the block's feasible lanes
+/// `below..upto`.
+///
+/// # Safety
+/// The CPU must have NEON; `lo..hi` are the feasible disparities of `x` and the BT rows are
+/// padded by [`BT_PAD`].
+#[inline(always)]
+unsafe fn for_bt_blocks(
+    ad: &AdRows<'_>,
+    x: usize,
+    width: usize,
+    first: i64,
+    lo: usize,
+    hi: usize,
+    mut block: impl FnMut(usize, uint8x16_t, usize, usize),
+) {
+    if lo >= hi {
+        return;
+    }
+    let il = BT_PAD + x;
+    let (lv, llo, lhi) =
+        (vdupq_n_u8(ad.left.value[il]), vdupq_n_u8(ad.left.lo[il]), vdupq_n_u8(ad.left.hi[il]));
+    let base = BT_PAD as i64 + width as i64 - 1 - first;
+    let mut k = lo & !15;
+    while k < hi {
+        // SAFETY: the right rows are padded by `BT_PAD` (32) entries at both ends, so the 16
+        // bytes at `i` (feasible pixels, or at most 15 past them) are inside them.
+        let i = (base + k as i64) as usize;
+        let rv = vld1q_u8(ad.right.value.as_ptr().add(i));
+        let rlo = vld1q_u8(ad.right.lo.as_ptr().add(i));
+        let rhi = vld1q_u8(ad.right.hi.as_ptr().add(i));
+        let d_lr = vmaxq_u8(vqsubq_u8(lv, rhi), vqsubq_u8(rlo, lv));
+        let d_rl = vmaxq_u8(vqsubq_u8(rv, lhi), vqsubq_u8(llo, rv));
+        block(k, vminq_u8(d_lr, d_rl), lo.saturating_sub(k), (hi - k).min(16));
+        k += 16;
+    }
 }
 
 /// Adds the AD term `min(weight · BT, cap)` of pixel `x` to its costs at `dst` for the feasible
@@ -353,19 +425,9 @@ unsafe fn add_ad_neon(
     lo: usize,
     hi: usize,
 ) {
-    if lo >= hi {
-        return;
-    }
-    let il = BT_PAD + x;
-    let (lv, llo, lhi) =
-        (vdupq_n_u8(ad.left.value[il]), vdupq_n_u8(ad.left.lo[il]), vdupq_n_u8(ad.left.hi[il]));
     let weight = vdupq_n_u16(ad.weight);
     let cap = vdupq_n_u16(ad.cap);
-    let base = BT_PAD as i64 + width as i64 - 1 - first;
-    let mut k = lo & !15;
-    while k < hi {
-        let below = lo.saturating_sub(k);
-        let upto = (hi - k).min(16);
+    for_bt_blocks(ad, x, width, first, lo, hi, |k, bt, below, upto| {
         // SAFETY: `below <= 15` and `1 <= upto <= 16`: every read below is inside `AD_LANE_MASKS`.
         let mask = |half: usize| {
             vandq_u16(
@@ -373,15 +435,6 @@ unsafe fn add_ad_neon(
                 vld1q_u16(AD_LANE_MASKS.as_ptr().add(32 - upto + 8 * half)),
             )
         };
-        // SAFETY: the right rows are padded by `BT_PAD` (32) entries at both ends, so the 16
-        // bytes at `i` (feasible pixels, or at most 15 past them) are inside them.
-        let i = (base + k as i64) as usize;
-        let rv = vld1q_u8(ad.right.value.as_ptr().add(i));
-        let rlo = vld1q_u8(ad.right.lo.as_ptr().add(i));
-        let rhi = vld1q_u8(ad.right.hi.as_ptr().add(i));
-        let d_lr = vmaxq_u8(vqsubq_u8(lv, rhi), vqsubq_u8(rlo, lv));
-        let d_rl = vmaxq_u8(vqsubq_u8(rv, lhi), vqsubq_u8(llo, rv));
-        let bt = vminq_u8(d_lr, d_rl);
         let term = |half: uint16x8_t| vminq_u16(vmulq_u16(half, weight), cap);
         // SAFETY: `k` is a multiple of 16 below `hi <= lanes` (a multiple of 16), so entries
         // `k..k + 16` are this pixel's; lanes outside `lo..hi` add 0.
@@ -390,8 +443,44 @@ unsafe fn add_ad_neon(
         let high = vandq_u16(term(vmovl_high_u8(bt)), mask(1));
         vst1q_u16(p, vaddq_u16(vld1q_u16(p), low));
         vst1q_u16(p.add(8), vaddq_u16(vld1q_u16(p.add(8)), high));
-        k += 16;
-    }
+    });
+}
+
+/// [`add_ad_neon`] on 8-bit costs: the term (`weight` and BT at most 255, their product exact in
+/// 16 bits) is narrowed after the cap (at most [`super::layout::MAX_AD_CAP`]) and added in bytes (every
+/// cost is at most 255, as [`super::cost_row_u8`] checks).
+///
+/// # Safety
+/// As [`add_ad_neon`], `dst` at pixel `x`'s `padded_lanes_u8(nd)` entries.
+#[inline]
+#[target_feature(enable = "neon")]
+unsafe fn add_ad_u8_neon(
+    ad: &AdRows<'_>,
+    dst: *mut u8,
+    x: usize,
+    width: usize,
+    first: i64,
+    lo: usize,
+    hi: usize,
+) {
+    debug_assert!(ad.weight <= 255);
+    let weight = vdup_n_u8(ad.weight as u8);
+    let cap = vdupq_n_u16(ad.cap);
+    let lane = vld1q_u8([0u8, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15].as_ptr());
+    for_bt_blocks(ad, x, width, first, lo, hi, |k, bt, below, upto| {
+        let low = vminq_u16(vmull_u8(vget_low_u8(bt), weight), cap);
+        let high = vminq_u16(vmull_u8(vget_high_u8(bt), weight), cap);
+        let mut term = vmovn_high_u16(vmovn_u16(low), high);
+        if below > 0 || upto < 16 {
+            // Lanes outside `lo..hi` add 0.
+            let inside =
+                vandq_u8(vcgeq_u8(lane, vdupq_n_u8(below as u8)), vcltq_u8(lane, vdupq_n_u8(upto as u8)));
+            term = vandq_u8(term, inside);
+        }
+        // SAFETY: entries `k..k + 16` are this pixel's (as in `add_ad_neon`).
+        let p = dst.add(k);
+        vst1q_u8(p, vaddq_u8(vld1q_u8(p), term));
+    });
 }
 
 /// [`super::scalar::census_row_scalar`] with NEON: 8 pixels per step, their bits gathered in four

@@ -131,35 +131,56 @@ fn cost_pixel_scalar(
     costs[nd..].fill(JUNK_COST);
 }
 
+/// A cost row's entry type: the `u16` rows, padded past `nd` with [`JUNK_COST`], and the 8-bit
+/// rows of the 8-bit passes, padded with [`PAD_U8`] (every census distance, at most 64, fits).
+pub(crate) trait CostEntry: Copy {
+    const PAST_ND: Self;
+    fn from_distance(bits: u32) -> Self;
+}
+
+impl CostEntry for u16 {
+    const PAST_ND: u16 = JUNK_COST;
+    fn from_distance(bits: u32) -> u16 {
+        bits as u16
+    }
+}
+
+impl CostEntry for u8 {
+    const PAST_ND: u8 = PAD_U8;
+    fn from_distance(bits: u32) -> u8 {
+        bits as u8
+    }
+}
+
 /// The census part of a SIMD kernel's pixel step (the Hamming distances of
 /// [`cost_pixel_scalar`], without the AD term): `block(l, r, dst)` stores the 16 distances of
 /// disparities `k..k + 16` at `dst` (`r` the 16 right census strings from the lowest address,
 /// the highest disparity's first) wherever all 16 right pixels are inside the row, this loop's
 /// step at the ends of the feasible range, `worst` where the right pixel is outside the row,
-/// [`JUNK_COST`] past `nd`. Returns [`feasible`]'s `(lo, hi, first)` for the AD term.
+/// [`CostEntry::PAST_ND`] past `nd`. Returns [`feasible`]'s `(lo, hi, first)` for the AD term.
 ///
 /// # Safety
 /// `costs.len()` is a multiple of 16 and at least `nd`; `block` may write the 16 entries at
 /// `dst` and read the 16 strings at `r`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) unsafe fn census_costs_in_blocks(
+pub(crate) unsafe fn census_costs_in_blocks<C: CostEntry>(
     left: &[u64],
     right: &[u64],
     x: usize,
     min_disparity: i32,
     nd: usize,
-    worst: u16,
-    costs: &mut [u16],
-    block: impl Fn(u64, *const u64, *mut u16),
+    worst: C,
+    costs: &mut [C],
+    block: impl Fn(u64, *const u64, *mut C),
 ) -> (usize, usize, i64) {
     let width = left.len();
     let l = left[x];
     let (lo, hi, first) = feasible(x, width, min_disparity, nd);
     costs[..lo].fill(worst);
     // Disparity index k has its right pixel at first - k.
-    let one = |costs: &mut [u16], k: usize| {
-        costs[k] = (l ^ right[(first - k as i64) as usize]).count_ones() as u16;
+    let one = |costs: &mut [C], k: usize| {
+        costs[k] = C::from_distance((l ^ right[(first - k as i64) as usize]).count_ones());
     };
     let mut k = lo;
     while k < hi && !k.is_multiple_of(16) {
@@ -177,7 +198,7 @@ pub(crate) unsafe fn census_costs_in_blocks(
         k += 1;
     }
     costs[hi..nd].fill(worst);
-    costs[nd..].fill(JUNK_COST);
+    costs[nd..].fill(C::PAST_ND);
     (lo, hi, first)
 }
 
