@@ -275,12 +275,12 @@ impl PathCost for u8 {
 /// Whether the passes run on 8-bit path costs: only where the 8-bit kernel pays off
 /// ([`Level::u8_passes`]: AVX-512, NEON) and every path cost fits.
 fn use_u8(inputs: &Inputs<'_>) -> bool {
-    u8_passes(inputs.range.count(), inputs.worst, inputs.p1, inputs.p2.max())
+    u8_passes(inputs.worst, inputs.p1, inputs.p2.max())
 }
 
-/// [`use_u8`] from the disparity count, the matching cost's largest value and the penalties.
-pub(crate) fn u8_passes(nd: usize, worst: u16, p1: u16, max_p2: u16) -> bool {
-    features().level.u8_passes(nd) && fits(worst, p1, max_p2)
+/// [`use_u8`] from the matching cost's largest value and the penalties.
+pub(crate) fn u8_passes(worst: u16, p1: u16, max_p2: u16) -> bool {
+    features().level.u8_passes() && fits(worst, p1, max_p2)
 }
 
 /// What the aggregation reads.

@@ -121,7 +121,7 @@ pub(crate) fn plan(width: usize, height: usize, params: &SgmParams) -> MemoryPla
         // the budget next to the strips planned above (so the strips, and the result, do not
         // depend on it): the `u16` passes always, 8-bit passes whose level remakes its cost rows
         // (`Level::remakes_u8_cost_rows`) only where the strip buffers are kept between calls.
-        let u8_passes = crate::aggregate::u8_passes(nd, worst_cost(params), params.p1, params.p2);
+        let u8_passes = crate::aggregate::u8_passes(worst_cost(params), params.p1, params.p2);
         let cost_row = crate::aggregate::cost_row_bytes(width, nd, u8_passes);
         let strip_bytes = rows.saturating_mul(per_row);
         let shared_bytes = rows.saturating_mul(cost_row);

@@ -1248,8 +1248,8 @@ mod tests {
                 ..SgmParams::default()
             };
             proptest::prop_assert_eq!(
-                crate::aggregate::u8_passes(params.range.count(), crate::memory::worst_cost(&params), params.p1, params.p2),
-                crate::kernels::features().level.u8_passes(params.range.count())
+                crate::aggregate::u8_passes(crate::memory::worst_cost(&params), params.p1, params.p2),
+                crate::kernels::features().level.u8_passes()
             );
             let (left, right) = random_pair(w, h, kind, (seed % 8) as i64, seed);
             let reference = crate::reference::sgm_reference(&left, &right, &params);

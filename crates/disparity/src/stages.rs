@@ -29,7 +29,7 @@ pub fn matching_costs(
     let nd = params.range.count();
     let census_bits = (params.census.width * params.census.height - 1) as u32;
     let worst = infeasible_cost(census_bits, params.matching_cost);
-    let narrow = crate::aggregate::u8_passes(nd, worst, params.p1, params.p2);
+    let narrow = crate::aggregate::u8_passes(worst, params.p1, params.p2);
     let mut row = vec![0u16; census_left.width() * padded_lanes(nd)];
     let mut row_u8 = vec![0u8; census_left.width() * padded_lanes_u8(nd)];
     let (mut bt_left, mut bt_right) = (BtRow::default(), BtRow::default());

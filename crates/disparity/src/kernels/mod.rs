@@ -151,18 +151,15 @@ impl Level {
         false
     }
 
-    /// Whether the aggregation runs 8-bit path costs over `nd` disparities where they fit
-    /// ([`layout::fits`]): at the levels whose 8-bit step holds twice the `u16` step's lanes per
-    /// instruction and widens its sums cheaply (AVX-512 with its register row kernels; NEON, whose
-    /// `UADDW` widens 8 lanes in one instruction, where the 8-bit lanes take fewer registers: not
-    /// up to 16 disparities, which both pad to two). AVX2's byte sums cost more than the
-    /// narrower vectors save.
-    pub(crate) fn u8_passes(self, nd: usize) -> bool {
+    /// Whether the aggregation runs 8-bit path costs where they fit ([`layout::fits`]): at the
+    /// levels with register row kernels for them, whose 8-bit step holds twice the `u16` step's
+    /// lanes per instruction and widens its sums cheaply (AVX-512; NEON, whose `UADDW` widens 8
+    /// lanes in one instruction). AVX2's byte sums cost more than the narrower vectors save.
+    pub(crate) fn u8_passes(self) -> bool {
         #[cfg(target_arch = "aarch64")]
         if self == Level::Neon {
-            return padded_lanes_u8(nd) < 2 * padded_lanes(nd);
+            return true;
         }
-        let _ = nd;
         self.avx512()
     }
 
