@@ -55,6 +55,9 @@ macro_rules! path_vector {
     (U8_512_REGISTERS, $($rest:tt)*) => {
         path_vector!(@step [_mm512_min_epu8, _mm512_adds_epu8, _mm512_sub_epi8], bracket_first, $($rest)*)
     };
+    (U8_256_REGISTERS, $($rest:tt)*) => {
+        path_vector!(@step [_mm256_min_epu8, _mm256_adds_epu8, _mm256_sub_epi8], bracket_first, $($rest)*)
+    };
     (U8_NEON_REGISTERS, $($rest:tt)*) => {
         path_vector!(@step [vminq_u8, vqaddq_u8, vsubq_u8], bracket_first, $($rest)*)
     };
@@ -152,15 +155,10 @@ impl Level {
     }
 
     /// Whether the aggregation runs 8-bit path costs where they fit ([`layout::fits`]): at the
-    /// levels with register row kernels for them, whose 8-bit step holds twice the `u16` step's
-    /// lanes per instruction and widens its sums cheaply (AVX-512; NEON, whose `UADDW` widens 8
-    /// lanes in one instruction). AVX2's byte sums cost more than the narrower vectors save.
+    /// levels with register row kernels for them (AVX2, AVX-512, NEON), whose 8-bit step holds
+    /// twice the `u16` step's lanes per instruction and keeps the horizontal path in registers.
     pub(crate) fn u8_passes(self) -> bool {
-        #[cfg(target_arch = "aarch64")]
-        if self == Level::Neon {
-            return true;
-        }
-        self.avx512()
+        self != Level::Scalar
     }
 
     /// Whether this level's 8-bit passes make each strip row's matching costs again in the
@@ -413,6 +411,9 @@ pub(crate) fn path_step_u8<const N: usize>(
         // the kernel reads and writes were checked above.
         #[cfg(target_arch = "x86_64")]
         Level::Avx512 => unsafe { avx512::path_step_u8_avx512(cost, p1, ins, outs, sum, accumulate) },
+        // SAFETY: `Level::Avx2` is only chosen when the CPU has AVX2; lengths checked above.
+        #[cfg(target_arch = "x86_64")]
+        Level::Avx2 => unsafe { avx2::path_step_u8_avx2(cost, p1, ins, outs, sum, accumulate) },
         // SAFETY: `Level::Neon` is only chosen when the CPU has NEON; lengths checked above.
         #[cfg(target_arch = "aarch64")]
         Level::Neon => unsafe { neon::path_step_u8_neon(cost, p1, ins, outs, sum, accumulate) },
@@ -674,13 +675,21 @@ const MAX_REGISTER_LANES: usize = 256;
 #[cfg(target_arch = "aarch64")]
 const MAX_REGISTER_LANES_NEON: usize = 128;
 
+/// The most lanes the AVX2 register kernel keeps (four 32-lane registers of the 16).
+#[cfg(target_arch = "x86_64")]
+const MAX_REGISTER_LANES_AVX2: usize = 128;
+
 /// Whether [`row_u8`] has a kernel for this level and lane count.
 pub(crate) fn row_u8_available(level: Level, lanes: usize) -> bool {
-    #[cfg(target_arch = "aarch64")]
-    if level == Level::Neon {
-        return lanes <= MAX_REGISTER_LANES_NEON;
+    match level {
+        Level::Scalar => false,
+        #[cfg(target_arch = "x86_64")]
+        Level::Avx2 => lanes <= MAX_REGISTER_LANES_AVX2,
+        #[cfg(target_arch = "x86_64")]
+        Level::Avx512 => lanes <= MAX_REGISTER_LANES,
+        #[cfg(target_arch = "aarch64")]
+        Level::Neon => lanes <= MAX_REGISTER_LANES_NEON,
     }
-    level.avx512() && lanes <= MAX_REGISTER_LANES
 }
 
 /// Runs one row of a pass: the horizontal path (right to left when `reverse`, else left to
@@ -724,9 +733,29 @@ pub(crate) fn row_u8<const K: usize>(
         return false;
     }
     #[cfg(target_arch = "x86_64")]
+    if level == Level::Avx2 {
+        macro_rules! run {
+            ($nv:literal) => {
+                // SAFETY: `row_u8_available` chose AVX2 (only when the CPU has it); the lengths
+                // were checked above and `lanes == 32 * $nv`.
+                unsafe {
+                    avx2::row_avx2::<$nv, K>(
+                        cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing,
+                    )
+                }
+            };
+        }
+        // `lanes` is a multiple of 32, at most MAX_REGISTER_LANES_AVX2.
+        match lanes / 32 {
+            1 => run!(1),
+            2 => run!(2),
+            3 => run!(3),
+            _ => run!(4),
+        }
+        return true;
+    }
+    #[cfg(target_arch = "x86_64")]
     {
-        // SAFETY: AVX-512 F/BW/VL is present (the level is only chosen when it is); the lengths
-        // were checked above and `lanes <= 64 * NV` for the chosen `NV`.
         // Tests turn the VBMI kernel off to cover the other one on CPUs that have both.
         #[cfg(test)]
         let allowed = !tests::row::NO_VBMI.with(|n| n.get());

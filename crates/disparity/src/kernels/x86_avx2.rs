@@ -5,11 +5,15 @@
 use std::arch::x86_64::*;
 
 use super::layout::{
-    padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, Samples, Window, AD_LANE_MASKS, BT_PAD, PAD_U8,
+    padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, PathInU8, Samples, Window, AD_LANE_MASKS, BT_PAD,
+    PAD_U8,
 };
 use super::scalar::{
     bt_fill_in_order, census_costs_in_blocks, census_span_scalar, keep_smaller_scalar, pad_window_rows,
 };
+
+mod row;
+pub(super) use row::row_avx2;
 
 /// Minimum of the 16 unsigned 16-bit lanes.
 #[inline]
@@ -17,6 +21,105 @@ use super::scalar::{
 pub(super) fn hmin_epu16_256(v: __m256i) -> u16 {
     let m = _mm_min_epu16(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
     _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u16
+}
+
+/// Minimum of the 32 unsigned 8-bit lanes.
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) fn hmin_epu8_256(v: __m256i) -> u8 {
+    let m = _mm_min_epu8(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
+    // Pairs of bytes to words (the smaller byte of each pair), then the word minimum.
+    let m = _mm_min_epu8(m, _mm_srli_epi16::<8>(m));
+    let m = _mm_and_si128(m, _mm_set1_epi16(0xff));
+    _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u8
+}
+
+/// `total += v` in 16 bits, as the sums of the even and of the odd lanes (a mask and a shift,
+/// no cross-lane widening; [`store_even_odd`] puts them back in order).
+#[inline]
+#[target_feature(enable = "avx2")]
+fn add_even_odd(total: &mut [__m256i; 2], v: __m256i) {
+    total[0] = _mm256_add_epi16(total[0], _mm256_and_si256(v, _mm256_set1_epi16(0xff)));
+    total[1] = _mm256_add_epi16(total[1], _mm256_srli_epi16::<8>(v));
+}
+
+/// Stores (or, with `accumulate`, adds) the 32 sums of lanes `k..k + 32` that [`add_even_odd`]
+/// gathered into `sum[k..]`, as far as `sum` reaches: the words interleaved back within each
+/// 128-bit lane, then the lanes' halves paired.
+///
+/// # Safety
+/// The CPU must have AVX2; `k < sum.len()`.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn store_even_odd(sum: &mut [u16], k: usize, even: __m256i, odd: __m256i, accumulate: bool) {
+    let (low, high) = (_mm256_unpacklo_epi16(even, odd), _mm256_unpackhi_epi16(even, odd));
+    let ordered =
+        [_mm256_permute2x128_si256::<0x20>(low, high), _mm256_permute2x128_si256::<0x31>(low, high)];
+    let nd = sum.len();
+    for (half, mut total) in ordered.into_iter().enumerate() {
+        let k = k + 16 * half;
+        if k + 16 <= nd {
+            // SAFETY: entries k..k + 16 of `sum`.
+            let dst = sum.as_mut_ptr().add(k);
+            if accumulate {
+                total = _mm256_add_epi16(total, _mm256_loadu_si256(dst.cast()));
+            }
+            _mm256_storeu_si256(dst.cast(), total);
+        } else if k < nd {
+            let mut tmp = [0u16; 16];
+            _mm256_storeu_si256(tmp.as_mut_ptr().cast(), total);
+            for (j, &t) in tmp[..nd - k].iter().enumerate() {
+                let d = &mut sum[k + j];
+                *d = if accumulate { d.wrapping_add(t) } else { t };
+            }
+        }
+    }
+}
+
+/// AVX2 [`super::path_step_u8`]: 32 disparities per instruction, the 16-bit sums from the even
+/// and the odd bytes ([`add_even_odd`]). For the warm-up rows and for vectors longer than the
+/// register row kernel ([`row_avx2`]) keeps.
+///
+/// # Safety
+/// The CPU must have AVX2; lengths as checked by [`super::path_step_u8`].
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn path_step_u8_avx2<const N: usize>(
+    cost: &[u8],
+    p1: u8,
+    ins: [PathInU8<'_>; N],
+    outs: [&mut [u8]; N],
+    sum: &mut [u16],
+    accumulate: bool,
+) -> [u8; N] {
+    let lanes = cost.len();
+    let p1v = _mm256_set1_epi8(p1 as i8);
+    let prev: [*const u8; N] = std::array::from_fn(|i| ins[i].prev.as_ptr());
+    let out: [*mut u8; N] = {
+        let mut outs = outs;
+        std::array::from_fn(|i| outs[i].as_mut_ptr())
+    };
+    let jump: [__m256i; N] =
+        std::array::from_fn(|i| _mm256_set1_epi8(ins[i].prev_min.saturating_add(ins[i].p2) as i8));
+    let pmin: [__m256i; N] = std::array::from_fn(|i| _mm256_set1_epi8(ins[i].prev_min as i8));
+    let mut mins = [_mm256_set1_epi8(-1); N];
+    let mut k = 0;
+    while k < lanes {
+        // SAFETY (pointer accesses below): `k + 32 <= lanes` (lanes is a multiple of 32) and
+        // `prev`/`out` have `lanes + 2` entries; `store_even_odd` writes only below `nd`.
+        let c = _mm256_loadu_si256(cost.as_ptr().add(k).cast());
+        let mut total = [_mm256_setzero_si256(); 2];
+        for i in 0..N {
+            let v = path_vector!(U8_256, c, prev[i].add(k), out[i].add(k + 1), p1v, jump[i], pmin[i]);
+            mins[i] = _mm256_min_epu8(mins[i], v);
+            add_even_odd(&mut total, v);
+        }
+        if k < sum.len() {
+            store_even_odd(sum, k, total[0], total[1], accumulate);
+        }
+        k += 32;
+    }
+    std::array::from_fn(|i| hmin_epu8_256(mins[i]))
 }
 
 /// AVX2 [`super::path_step`]: 16 disparities per instruction ([`path_step_avx2_body`] compiled

@@ -10,7 +10,7 @@ use super::layout::{
     feasible, interleave, padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, PathInU8, BT_PAD,
     JUNK_COST, PAD_U8,
 };
-use super::x86_avx2::hmin_epu16_256;
+use super::x86_avx2::{hmin_epu16_256, hmin_epu8_256};
 
 mod census;
 mod median;
@@ -745,17 +745,6 @@ pub(super) unsafe fn p2_row_u8_avx512(table: &[u8; 256], a: &[u16], b: &[u16], o
         _mm256_mask_storeu_epi8(out.as_mut_ptr().add(i).cast(), mask, _mm512_castsi512_si256(p2));
         i += 32;
     }
-}
-
-/// Minimum of the 32 unsigned 8-bit lanes.
-#[inline]
-#[target_feature(enable = "avx512f,avx512bw,avx512vl")]
-fn hmin_epu8_256(v: __m256i) -> u8 {
-    let m = _mm_min_epu8(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
-    // Pairs of bytes to words (the smaller byte of each pair), then the word minimum.
-    let m = _mm_min_epu8(m, _mm_srli_epi16::<8>(m));
-    let m = _mm_and_si128(m, _mm_set1_epi16(0xff));
-    _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u8
 }
 
 /// AVX-512BW [`super::path_step_u8`]: 64 disparities per instruction (and a 32-lane step
