@@ -91,6 +91,7 @@ unsafe fn pixel<const NV: usize, const K: usize>(
     from_row: &mut [FromRow<'_>; K],
     sum: &mut [u16],
     accumulate: bool,
+    reverse: bool,
 ) {
     let Shape { width, lanes, nd, pad, p1 } = *shape;
     let stride = lanes + 2;
@@ -148,6 +149,16 @@ unsafe fn pixel<const NV: usize, const K: usize>(
         }
         from.out_mins[x] = hmin_epu8_256(m);
     }
+    if accumulate {
+        // The sums were stored a while ago: ask for the ones a few pixels ahead.
+        let ahead = if reverse { x.wrapping_sub(6) } else { x + 6 };
+        if ahead < width {
+            let line = sum.as_ptr().add(ahead * nd).cast::<i8>();
+            for b in (0..2 * nd).step_by(64) {
+                _mm_prefetch::<_MM_HINT_T0>(line.add(b));
+            }
+        }
+    }
     let s = &mut sum[x * nd..(x + 1) * nd];
     for (v, &[even, odd]) in total.iter().enumerate() {
         // Registers past the last disparity hold only pads: their sums are not stored.
@@ -183,9 +194,9 @@ pub(in crate::kernels) unsafe fn row_avx2<const NV: usize, const K: usize>(
     let mut back = Horizontal { path: [pad; NV], min: _mm256_setzero_si256() };
     for i in 0..width {
         let x = if reverse { width - 1 - i } else { i };
-        pixel::<NV, K>(&shape, &mut h, i, x, cost, p2, &mut from_row, sum, accumulate);
+        pixel::<NV, K>(&shape, &mut h, i, x, cost, p2, &mut from_row, sum, accumulate, reverse);
         if let Some(t) = &mut trailing {
-            pixel::<NV, 0>(&shape, &mut back, i, width - 1 - i, t.cost, t.p2, &mut [], t.sum, true);
+            pixel::<NV, 0>(&shape, &mut back, i, width - 1 - i, t.cost, t.p2, &mut [], t.sum, true, true);
         }
     }
 }
