@@ -98,11 +98,13 @@ pub(crate) fn select_row(
         // SAFETY: the AVX-512 level was detected on this CPU.
         return unsafe { fused::select_row_avx512(costs, width, nd, sel, scratch, out) };
     }
+    #[cfg(target_arch = "x86_64")]
+    if kernels::features().level == Level::Avx2 && fused_avx2::applies(nd, width) {
+        // SAFETY: the AVX2 level is only chosen when the CPU has AVX2.
+        return unsafe { fused_avx2::select_row_avx2(costs, width, nd, sel, scratch, out) };
+    }
     #[cfg(target_arch = "aarch64")]
-    if kernels::features().level == Level::Neon
-        && nd <= fused_neon::MAX_DISPARITIES
-        && width < usize::from(NO_MATCH)
-    {
+    if kernels::features().level == Level::Neon && fused_neon::applies(nd, width) {
         // SAFETY: the NEON level is only chosen when the CPU has NEON.
         return unsafe { fused_neon::select_row_neon(costs, width, nd, sel, scratch, out) };
     }
@@ -142,6 +144,22 @@ fn check_left_right(
     }
 }
 
+/// The right view's winner (disparity index) of right pixel `q` (in `right_index`'s `width − 1 −
+/// xr` order) from the left pixel `x` it was found at, [`NO_MATCH`] kept: the AVX2 and NEON
+/// kernels' windows keep the pixel instead of the index.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline(always)]
+fn index_from_pixel(x: u16, q: i64, width: usize, min: i64) -> u16 {
+    if x == NO_MATCH {
+        NO_MATCH
+    } else {
+        // Right pixel xr = width − 1 − q matched left pixel x at disparity min + k = x − xr.
+        (i64::from(x) - (width as i64 - 1 - q) - min) as u16
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod fused_avx2;
 #[cfg(target_arch = "aarch64")]
 mod fused_neon;
 
@@ -559,8 +577,15 @@ mod tests {
                 unsafe { fused::select_row_avx512(&costs, width, nd, sel, &mut scratch, &mut f) };
                 runs.push(("fused", f));
             }
+            #[cfg(target_arch = "x86_64")]
+            if kernels::supported_levels().contains(&Level::Avx2) && fused_avx2::applies(nd, width) {
+                let mut f = vec![0f32; width];
+                // SAFETY: AVX2 is supported (checked above); the lengths fit.
+                unsafe { fused_avx2::select_row_avx2(&costs, width, nd, sel, &mut scratch, &mut f) };
+                runs.push(("fused AVX2", f));
+            }
             #[cfg(target_arch = "aarch64")]
-            if kernels::supported_levels().contains(&Level::Neon) && nd <= fused_neon::MAX_DISPARITIES && width < usize::from(NO_MATCH) {
+            if kernels::supported_levels().contains(&Level::Neon) && fused_neon::applies(nd, width) {
                 let mut f = vec![0f32; width];
                 // SAFETY: NEON is supported (checked above); the lengths fit.
                 unsafe { fused_neon::select_row_neon(&costs, width, nd, sel, &mut scratch, &mut f) };

@@ -668,6 +668,7 @@ unsafe fn median3x3_row_lanes_avx2(rows: [&[f32]; 3], out: &mut [f32]) {
 
 /// The most lanes the AVX-512 register kernel keeps (four 64-lane registers); longer vectors
 /// take the per-pixel kernel.
+#[cfg(target_arch = "x86_64")]
 const MAX_REGISTER_LANES: usize = 256;
 
 /// The most lanes the NEON register kernel keeps (eight 16-lane registers of the 32; more would

@@ -10,15 +10,23 @@
 
 use std::arch::aarch64::*;
 
-use super::{check_left_right, feasible_left, tagged_nan, PixelStatus, Selection, WtaScratch, NO_MATCH};
+use super::{
+    check_left_right, feasible_left, index_from_pixel, tagged_nan, PixelStatus, Selection, WtaScratch,
+    NO_MATCH,
+};
 use crate::winner::refined_offset;
 
 /// Registers of 8 lanes per window array: up to 16, i.e. 128 disparities (more would spill the
 /// windows to the stack at every pixel).
 const MAX_VECTORS: usize = 16;
-pub(super) const MAX_DISPARITIES: usize = 8 * MAX_VECTORS;
+const MAX_DISPARITIES: usize = 8 * MAX_VECTORS;
 
-/// [`super::select_row`] for `nd <= MAX_DISPARITIES` and rows narrower than [`NO_MATCH`].
+/// Whether [`select_row_neon`] takes rows of `nd` disparities and `width` pixels.
+pub(super) fn applies(nd: usize, width: usize) -> bool {
+    nd <= MAX_DISPARITIES && width < usize::from(NO_MATCH)
+}
+
+/// [`super::select_row`] where [`applies`] holds.
 ///
 /// # Safety
 /// The CPU must have NEON; `costs` holds at least `width * nd` entries and `out` at least
@@ -56,18 +64,6 @@ pub(super) unsafe fn select_row_neon(
 #[inline(always)]
 unsafe fn in_range(index: int16x8_t, lo: usize, hi: usize) -> uint16x8_t {
     vandq_u16(vcgeq_s16(index, vdupq_n_s16(lo as i16)), vcltq_s16(index, vdupq_n_s16(hi as i16)))
-}
-
-/// The right view's winner (disparity index) of right pixel `q` (in `right_index`'s `width − 1 −
-/// xr` order) from the left pixel `x` it was found at, [`NO_MATCH`] kept.
-#[inline(always)]
-fn index_from_pixel(x: u16, q: i64, width: usize, min: i64) -> u16 {
-    if x == NO_MATCH {
-        NO_MATCH
-    } else {
-        // Right pixel xr = width − 1 − q matched left pixel x at disparity min + k = x − xr.
-        (i64::from(x) - (width as i64 - 1 - q) - min) as u16
-    }
 }
 
 /// # Safety
