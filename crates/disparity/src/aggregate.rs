@@ -273,7 +273,7 @@ impl PathCost for u8 {
 }
 
 /// Whether the passes run on 8-bit path costs: only where the 8-bit kernel pays off
-/// ([`Level::u8_passes`]: AVX-512, NEON) and every path cost fits.
+/// ([`Level::u8_passes`]: every SIMD level) and every path cost fits.
 fn use_u8(inputs: &Inputs<'_>) -> bool {
     u8_passes(inputs.worst, inputs.p1, inputs.p2.max())
 }

@@ -879,7 +879,7 @@ pub(crate) fn aggregate_census(
 /// aggregation pass and the `u16` sum volume of one strip (`2·W·D` bytes per strip row; strips
 /// sized for speed by default, or to fit [`SgmParams::max_memory`]) with, where it fits beside
 /// them, the strip's matching costs kept for the second pass (about as much again for `u16`
-/// costs, half as much for the 8-bit costs of AVX-512 and NEON; AVX-512 keeps them only while
+/// costs, half as much for the 8-bit costs of AVX2, AVX-512 and NEON; AVX-512 keeps them only while
 /// [`keep_strip_buffers`](crate::keep_strip_buffers) is on); in single-pass mode one row of sums
 /// per strip instead. The input images are not counted. If `max_memory` is too small
 /// to plan anything, the smallest plan (one-row strips), which [`sgm`] refuses.

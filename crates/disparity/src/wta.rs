@@ -54,7 +54,7 @@ pub(crate) struct WtaScratch {
     /// Right view, indexed by `width - 1 - xr`: the best cost so far and its disparity index.
     right_cost: Vec<u16>,
     right_index: Vec<u16>,
-    /// Left view: each pixel's winning disparity index (fused AVX-512 and NEON kernels).
+    /// Left view: each pixel's winning disparity index (fused AVX2, AVX-512 and NEON kernels).
     #[cfg_attr(not(any(target_arch = "x86_64", target_arch = "aarch64")), allow(dead_code))]
     left_best: Vec<u16>,
     /// The winner's cost and its two neighbours' (the winner's own where it has none), for the

@@ -163,8 +163,8 @@ impl Level {
 
     /// Whether this level's 8-bit passes make each strip row's matching costs again in the
     /// second pass of a one-shot call instead of keeping the first pass's: AVX-512's VPOPCNTDQ
-    /// cost rows take less time than a fresh buffer's page faults; NEON's are dearer, and its
-    /// passes keep them (`memory::plan`).
+    /// cost rows take less time than a fresh buffer's page faults; AVX2's and NEON's are
+    /// dearer, and their passes keep them (`memory::plan`).
     pub(crate) fn remakes_u8_cost_rows(self) -> bool {
         self.avx512()
     }

@@ -1,4 +1,4 @@
-//! The register row kernels (AVX-512, NEON) against the per-pixel scalar step.
+//! The register row kernels (AVX2, AVX-512, NEON) against the per-pixel scalar step.
 
 use crate::kernels::layout::{padded_lanes_u8, FromRow, PathIn, PAD_U8};
 use crate::kernels::scalar::path_step_u8_scalar;
