@@ -55,23 +55,33 @@ unsafe fn store_even_odd(sum: &mut [u16], k: usize, even: __m256i, odd: __m256i,
     let (low, high) = (_mm256_unpacklo_epi16(even, odd), _mm256_unpackhi_epi16(even, odd));
     let ordered =
         [_mm256_permute2x128_si256::<0x20>(low, high), _mm256_permute2x128_si256::<0x31>(low, high)];
+    for (half, total) in ordered.into_iter().enumerate() {
+        store_sums(sum, k + 16 * half, total, accumulate);
+    }
+}
+
+/// Stores (or, with `accumulate`, adds) the 16 sums `total` at `sum[k..]`, as far as `sum`
+/// reaches. Not a `target_feature` function, so that it inlines into
+/// [`path_step_avx2_body`]'s callers (the AVX2 copies of the aggregation loops) as well.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[inline(always)]
+unsafe fn store_sums(sum: &mut [u16], k: usize, mut total: __m256i, accumulate: bool) {
     let nd = sum.len();
-    for (half, mut total) in ordered.into_iter().enumerate() {
-        let k = k + 16 * half;
-        if k + 16 <= nd {
-            // SAFETY: entries k..k + 16 of `sum`.
-            let dst = sum.as_mut_ptr().add(k);
-            if accumulate {
-                total = _mm256_add_epi16(total, _mm256_loadu_si256(dst.cast()));
-            }
-            _mm256_storeu_si256(dst.cast(), total);
-        } else if k < nd {
-            let mut tmp = [0u16; 16];
-            _mm256_storeu_si256(tmp.as_mut_ptr().cast(), total);
-            for (j, &t) in tmp[..nd - k].iter().enumerate() {
-                let d = &mut sum[k + j];
-                *d = if accumulate { d.wrapping_add(t) } else { t };
-            }
+    if k + 16 <= nd {
+        // SAFETY: entries k..k + 16 of `sum`.
+        let dst = sum.as_mut_ptr().add(k);
+        if accumulate {
+            total = _mm256_add_epi16(total, _mm256_loadu_si256(dst.cast()));
+        }
+        _mm256_storeu_si256(dst.cast(), total);
+    } else if k < nd {
+        let mut tmp = [0u16; 16];
+        _mm256_storeu_si256(tmp.as_mut_ptr().cast(), total);
+        for (j, &t) in tmp[..nd - k].iter().enumerate() {
+            let d = &mut sum[k + j];
+            *d = if accumulate { d.wrapping_add(t) } else { t };
         }
     }
 }
@@ -158,7 +168,6 @@ pub(super) unsafe fn path_step_avx2_body<const N: usize>(
     accumulate: bool,
 ) -> [u16; N] {
     let lanes = cost.len();
-    let nd = sum.len();
     let p1v = _mm256_set1_epi16(p1 as i16);
     let prev: [*const u16; N] = std::array::from_fn(|i| ins[i].prev.as_ptr());
     let out: [*mut u16; N] = {
@@ -172,7 +181,7 @@ pub(super) unsafe fn path_step_avx2_body<const N: usize>(
     let mut k = 0;
     while k < lanes {
         // SAFETY (pointer accesses below): `k + 16 <= lanes` (lanes is a multiple of 16),
-        // `prev`/`out` have `lanes + 2` entries, and `sum` is written only below `nd`.
+        // `prev`/`out` have `lanes + 2` entries, and `store_sums` writes only inside `sum`.
         let c = _mm256_loadu_si256(cost.as_ptr().add(k).cast());
         let mut total = _mm256_setzero_si256();
         for i in 0..N {
@@ -180,20 +189,7 @@ pub(super) unsafe fn path_step_avx2_body<const N: usize>(
             mins[i] = _mm256_min_epu16(mins[i], v);
             total = _mm256_add_epi16(total, v);
         }
-        if k + 16 <= nd {
-            let dst = sum.as_mut_ptr().add(k);
-            if accumulate {
-                total = _mm256_add_epi16(total, _mm256_loadu_si256(dst.cast()));
-            }
-            _mm256_storeu_si256(dst.cast(), total);
-        } else if k < nd {
-            let mut tmp = [0u16; 16];
-            _mm256_storeu_si256(tmp.as_mut_ptr().cast(), total);
-            for (j, &t) in tmp[..nd - k].iter().enumerate() {
-                let d = &mut sum[k + j];
-                *d = if accumulate { d.wrapping_add(t) } else { t };
-            }
-        }
+        store_sums(sum, k, total, accumulate);
         k += 16;
     }
     std::array::from_fn(|i| hmin_epu16_256(mins[i]))
