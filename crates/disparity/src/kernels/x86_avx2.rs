@@ -6,7 +6,6 @@ use std::arch::x86_64::*;
 
 use super::layout::{
     padded_lanes, padded_lanes_u8, AdRows, BandRow, PathIn, PathInU8, Samples, Window, AD_LANE_MASKS, BT_PAD,
-    PAD_U8,
 };
 use super::scalar::{
     bt_fill_in_order, census_costs_in_blocks, census_span_scalar, keep_smaller_scalar, pad_window_rows,
@@ -230,8 +229,8 @@ pub(super) unsafe fn argmin_avx2(values: &[u16]) -> (u16, usize) {
 }
 
 /// [`super::cost_row_u8`] for machines without the AVX-512 kernel (AVX2, or AVX-512 without
-/// VPOPCNTDQ and VBMI): each pixel's `u16` costs by [`cost_pixel_avx2`], narrowed with unsigned
-/// saturation 32 lanes per step (exact: every cost is at most 255), [`PAD_U8`] from `nd` on.
+/// VPOPCNTDQ and VBMI): each pixel's costs made in 8 bits ([`cost_pixel_u8_avx2`]),
+/// [`super::layout::PAD_U8`] from `nd` on. No `u16` row in between: every cost is at most 255.
 ///
 /// # Safety
 /// The CPU must have AVX2 and POPCNT; lengths and bounds as checked by [`super::cost_row_u8`].
@@ -245,31 +244,43 @@ pub(super) unsafe fn cost_row_u8_avx2(
     ad: Option<AdRows<'_>>,
     out: &mut [u8],
 ) {
-    let (wide_lanes, narrow_lanes) = (padded_lanes(nd), padded_lanes_u8(nd));
-    let mut wide = vec![0u16; wide_lanes];
-    for (x, narrow) in out.chunks_exact_mut(narrow_lanes).enumerate() {
-        // SAFETY: as checked by the caller; `wide` holds `padded_lanes(nd)` entries.
-        cost_pixel_avx2(left, right, x, min_disparity, nd, worst, &ad, &mut wide);
-        let (w, n) = (wide.as_ptr(), narrow.as_mut_ptr());
-        let mut k = 0;
-        while k + 32 <= wide_lanes {
-            // SAFETY: entries k..k + 32 of `wide` (wide_lanes) and of `narrow` (narrow_lanes >=
-            // wide_lanes). `packus` interleaves the two registers' 128-bit halves; the permute
-            // puts them back in order.
-            let packed = _mm256_packus_epi16(
-                _mm256_loadu_si256(w.add(k).cast()),
-                _mm256_loadu_si256(w.add(k + 16).cast()),
-            );
-            _mm256_storeu_si256(n.add(k).cast(), _mm256_permute4x64_epi64::<0b11_01_10_00>(packed));
-            k += 32;
-        }
-        if k < wide_lanes {
-            // SAFETY: the last 16 entries of `wide`, into `narrow` (at least as many lanes).
-            let v = _mm256_loadu_si256(w.add(k).cast());
-            let packed = _mm_packus_epi16(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
-            _mm_storeu_si128(n.add(k).cast(), packed);
-        }
-        narrow[nd..].fill(PAD_U8);
+    let lanes = padded_lanes_u8(nd);
+    for (x, costs) in out.chunks_exact_mut(lanes).enumerate() {
+        // SAFETY: as checked by the caller; `costs` holds `padded_lanes_u8(nd)` entries, a
+        // multiple of 32.
+        cost_pixel_u8_avx2(left, right, x, min_disparity, nd, worst as u8, &ad, costs);
+    }
+}
+
+/// [`cost_pixel_avx2`] in 8 bits: each block's 16 distances packed to bytes, the AD term
+/// narrowed before it is added ([`add_ad_u8_avx2`]).
+///
+/// # Safety
+/// As [`cost_pixel_avx2`], with `costs.len()` a multiple of 16 and at least `nd`.
+#[inline]
+#[target_feature(enable = "avx2,popcnt")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn cost_pixel_u8_avx2(
+    left: &[u64],
+    right: &[u64],
+    x: usize,
+    min_disparity: i32,
+    nd: usize,
+    worst: u8,
+    ad: &Option<AdRows<'_>>,
+    costs: &mut [u8],
+) {
+    // SAFETY: `hamming_block_avx2` reads 16 strings and the store writes 16 entries, as the
+    // driver allows; the CPU has AVX2 (this function's precondition).
+    let (lo, hi, first) =
+        census_costs_in_blocks(left, right, x, min_disparity, nd, worst, costs, |l, r, dst| {
+            let d = hamming_block_avx2(l, r);
+            let d = _mm_packus_epi16(_mm256_castsi256_si128(d), _mm256_extracti128_si256::<1>(d));
+            _mm_storeu_si128(dst.cast(), d)
+        });
+    if let Some(ad) = ad {
+        // SAFETY: as in `cost_pixel_avx2`.
+        add_ad_u8_avx2(ad, costs.as_mut_ptr(), x, left.len(), first, lo, hi);
     }
 }
 
@@ -300,23 +311,23 @@ pub(super) unsafe fn keep_smaller_avx2(costs: &[u16], first_index: u16, best: &m
     keep_smaller_scalar(&costs[k..], first_index + k as u16, &mut best[k..], &mut index[k..]);
 }
 
-/// Adds the AD term `min(weight · BT, cap)` of pixel `x` to its costs at `dst` for the feasible
-/// disparities `lo..hi` (as the AD part of [`super::scalar::cost_row_scalar`]), 16 disparities
-/// per step.
+/// The AD term `min(weight · BT, cap)` of pixel `x` for its feasible disparities `lo..hi` (as
+/// the AD part of [`super::scalar::cost_row_scalar`]), 16 disparities per step: `add(k, term)`
+/// gets the terms of disparities `k..k + 16` (`k` a multiple of 16) as 16-bit lanes, 0 outside
+/// `lo..hi`.
 ///
 /// # Safety
-/// The CPU must have AVX2; `dst` points at pixel `x`'s `padded_lanes(nd)` entries, `lo..hi` are
-/// its feasible disparities and the BT rows are padded by [`BT_PAD`].
-#[inline]
-#[target_feature(enable = "avx2")]
-unsafe fn add_ad_avx2(
+/// The CPU must have AVX2; `lo..hi` are pixel `x`'s feasible disparities and the BT rows are
+/// padded by [`BT_PAD`].
+#[inline(always)]
+unsafe fn for_ad_blocks(
     ad: &AdRows<'_>,
-    dst: *mut u16,
     x: usize,
     width: usize,
     first: i64,
     lo: usize,
     hi: usize,
+    mut add: impl FnMut(usize, __m256i),
 ) {
     if lo >= hi {
         return;
@@ -348,13 +359,60 @@ unsafe fn add_ad_avx2(
         let d_rl = _mm_max_epu8(_mm_subs_epu8(rv, lhi), _mm_subs_epu8(llo, rv));
         let bt = _mm256_cvtepu8_epi16(_mm_min_epu8(d_lr, d_rl));
         let term = _mm256_min_epu16(_mm256_mullo_epi16(bt, weight), cap);
-        // SAFETY: `k` is a multiple of 16 below `hi <= lanes` (a multiple of 16), so entries
-        // `k..k + 16` are this pixel's; lanes outside `lo..hi` add 0.
-        let p = dst.add(k);
-        let c = _mm256_loadu_si256(p.cast());
-        _mm256_storeu_si256(p.cast(), _mm256_add_epi16(c, _mm256_and_si256(term, mask)));
+        add(k, _mm256_and_si256(term, mask));
         k += 16;
     }
+}
+
+/// Adds the AD term of pixel `x` ([`for_ad_blocks`]) to its 16-bit costs at `dst`.
+///
+/// # Safety
+/// The CPU must have AVX2; `dst` points at pixel `x`'s `padded_lanes(nd)` entries, `lo..hi` are
+/// its feasible disparities and the BT rows are padded by [`BT_PAD`].
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn add_ad_avx2(
+    ad: &AdRows<'_>,
+    dst: *mut u16,
+    x: usize,
+    width: usize,
+    first: i64,
+    lo: usize,
+    hi: usize,
+) {
+    for_ad_blocks(ad, x, width, first, lo, hi, |k, term| {
+        // SAFETY: `k` is a multiple of 16 below `hi <= lanes` (a multiple of 16), so entries
+        // `k..k + 16` are this pixel's.
+        let p = dst.add(k);
+        _mm256_storeu_si256(p.cast(), _mm256_add_epi16(_mm256_loadu_si256(p.cast()), term));
+    });
+}
+
+/// Adds the AD term of pixel `x` ([`for_ad_blocks`]) to its 8-bit costs at `dst`, each term
+/// narrowed before it is added (exact: the 8-bit passes run only where every cost, the term
+/// included, is at most 255).
+///
+/// # Safety
+/// The CPU must have AVX2; `dst` points at pixel `x`'s `padded_lanes_u8(nd)` entries, `lo..hi`
+/// are its feasible disparities and the BT rows are padded by [`BT_PAD`].
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn add_ad_u8_avx2(
+    ad: &AdRows<'_>,
+    dst: *mut u8,
+    x: usize,
+    width: usize,
+    first: i64,
+    lo: usize,
+    hi: usize,
+) {
+    for_ad_blocks(ad, x, width, first, lo, hi, |k, term| {
+        let term = _mm_packus_epi16(_mm256_castsi256_si128(term), _mm256_extracti128_si256::<1>(term));
+        // SAFETY: `k` is a multiple of 16 below `hi <= lanes` (a multiple of 32), so entries
+        // `k..k + 16` are this pixel's.
+        let p = dst.add(k);
+        _mm_storeu_si128(p.cast(), _mm_add_epi8(_mm_loadu_si128(p.cast()), term));
+    });
 }
 
 /// [`super::cost_row`] for AVX2 machines: [`cost_pixel_avx2`] for each pixel.
