@@ -177,7 +177,11 @@ pub(crate) unsafe fn census_costs_in_blocks<C: CostEntry>(
     let width = left.len();
     let l = left[x];
     let (lo, hi, first) = feasible(x, width, min_disparity, nd);
-    costs[..lo].fill(worst);
+    // The fills below are empty for most pixels; the guards keep `u8` rows from calling
+    // `memset` for nothing (three calls per pixel otherwise).
+    if lo > 0 {
+        costs[..lo].fill(worst);
+    }
     // Disparity index k has its right pixel at first - k.
     let one = |costs: &mut [C], k: usize| {
         costs[k] = C::from_distance((l ^ right[(first - k as i64) as usize]).count_ones());
@@ -197,8 +201,12 @@ pub(crate) unsafe fn census_costs_in_blocks<C: CostEntry>(
         one(costs, k);
         k += 1;
     }
-    costs[hi..nd].fill(worst);
-    costs[nd..].fill(C::PAST_ND);
+    if hi < nd {
+        costs[hi..nd].fill(worst);
+    }
+    if nd < costs.len() {
+        costs[nd..].fill(C::PAST_ND);
+    }
     (lo, hi, first)
 }
 
