@@ -106,15 +106,20 @@ unsafe fn sweep<const NV: usize>(
     if width == 0 {
         return;
     }
-    // The first pixel's costs with `pad` infeasible entries before them (no pixel precedes it).
-    let mut first = [u16::MAX; 16 * MAX_VECTORS];
-    first[pad..pad + nd].copy_from_slice(&costs[..nd]);
+    // Where the `pad` entries before a pixel's costs would start before `costs` (the first
+    // pixel, and the next few when `nd < pad`), its costs are staged after `pad` infeasible ones.
+    let mut staged = [u16::MAX; 16 * MAX_VECTORS];
     for x in 0..width {
         let ks = feasible_left(x, width, sel.range);
         let interior = ks.start == 0 && ks.end == nd;
-        // SAFETY: entries `x·nd − pad .. x·nd + nd` of `costs` (for x ≥ 1 they start inside the
-        // previous pixel's), or of `first`.
-        let base = if x == 0 { first.as_ptr() } else { costs.as_ptr().add(x * nd - pad) };
+        let base = if x * nd >= pad {
+            // SAFETY: entries `x·nd − pad .. x·nd + nd` of `costs` (the `pad` before this
+            // pixel's are the previous pixels', masked below).
+            costs.as_ptr().add(x * nd - pad)
+        } else {
+            staged[pad..pad + nd].copy_from_slice(&costs[x * nd..(x + 1) * nd]);
+            staged.as_ptr()
+        };
         // Infeasible lanes read as u16::MAX: never a winner, never below a window's minimum.
         let mut c: [__m256i; NV] = std::array::from_fn(|j| _mm256_loadu_si256(base.add(16 * j).cast()));
         if interior {
