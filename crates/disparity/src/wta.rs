@@ -93,14 +93,16 @@ pub(crate) fn select_row(
     scratch: &mut WtaScratch,
     out: &mut [f32],
 ) {
+    // Up to 16 disparities AVX-512 CPUs take the AVX2 sweep: a 32-lane register would be half
+    // padding.
     #[cfg(target_arch = "x86_64")]
-    if kernels::features().level.avx512() && nd <= fused::MAX_DISPARITIES {
+    if kernels::features().level.avx512() && nd > 16 && nd <= fused::MAX_DISPARITIES {
         // SAFETY: the AVX-512 level was detected on this CPU.
         return unsafe { fused::select_row_avx512(costs, width, nd, sel, scratch, out) };
     }
     #[cfg(target_arch = "x86_64")]
-    if kernels::features().level == Level::Avx2 && fused_avx2::applies(nd, width) {
-        // SAFETY: the AVX2 level is only chosen when the CPU has AVX2.
+    if matches!(kernels::features().level, Level::Avx2 | Level::Avx512) && fused_avx2::applies(nd, width) {
+        // SAFETY: both levels are only chosen when the CPU has AVX2 (AVX-512 CPUs have it).
         return unsafe { fused_avx2::select_row_avx2(costs, width, nd, sel, scratch, out) };
     }
     #[cfg(target_arch = "aarch64")]

@@ -144,8 +144,9 @@ impl Level {
         }
     }
 
-    /// Whether this is the AVX-512 level: the kernels that exist only there (the register row
-    /// kernels, the fused winner-takes-all) run. False on every other architecture.
+    /// Whether this is the AVX-512 level (its own kernels: VPOPCNTDQ cost rows, VBMI census,
+    /// the 64-lane row kernels, the 32-lane fused winner-takes-all). False on every other
+    /// architecture.
     pub(crate) fn avx512(self) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self == Level::Avx512 {
@@ -733,12 +734,16 @@ pub(crate) fn row_u8<const K: usize>(
     if width == 0 || !row_u8_available(level, lanes) {
         return false;
     }
+    // AVX-512 CPUs run rows of 32 lanes (up to 32 disparities) on the AVX2 kernel too: in one
+    // 64-lane register half the lanes would be padding (tsukuba's and venus' row kernel took 0.68x
+    // the time). At 96 lanes the AVX2 kernel's three registers spill and AVX-512 stays faster.
     #[cfg(target_arch = "x86_64")]
-    if level == Level::Avx2 {
+    if level == Level::Avx2 || (level == Level::Avx512 && lanes == 32) {
         macro_rules! run {
             ($nv:literal) => {
-                // SAFETY: `row_u8_available` chose AVX2 (only when the CPU has it); the lengths
-                // were checked above and `lanes == 32 * $nv`.
+                // SAFETY: `row_u8_available` chose AVX2 or AVX-512 (only when the CPU has it,
+                // and AVX-512 CPUs have AVX2); the lengths were checked above and
+                // `lanes == 32 * $nv`.
                 unsafe {
                     avx2::row_avx2::<$nv, K>(
                         cost, lanes, nd, p1, p2, from_row, sum, reverse, accumulate, trailing,
