@@ -100,6 +100,9 @@ mod x86_avx512;
 use aarch64_neon as neon;
 #[cfg(target_arch = "x86_64")]
 use x86_avx2 as avx2;
+/// Shared with `wta::fused_avx2`'s sweep.
+#[cfg(target_arch = "x86_64")]
+pub(crate) use x86_avx2::hmin_epu16_256;
 #[cfg(target_arch = "x86_64")]
 use x86_avx512 as avx512;
 

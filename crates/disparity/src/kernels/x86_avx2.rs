@@ -17,7 +17,7 @@ pub(super) use row::row_avx2;
 /// Minimum of the 16 unsigned 16-bit lanes.
 #[inline]
 #[target_feature(enable = "avx2")]
-pub(super) fn hmin_epu16_256(v: __m256i) -> u16 {
+pub(crate) fn hmin_epu16_256(v: __m256i) -> u16 {
     let m = _mm_min_epu16(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
     _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u16
 }

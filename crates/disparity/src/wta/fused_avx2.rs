@@ -17,6 +17,7 @@ use super::{
     check_left_right, feasible_left, index_from_pixel, tagged_nan, PixelStatus, Selection, WtaScratch,
     NO_MATCH,
 };
+use crate::kernels::hmin_epu16_256;
 use crate::winner::refined_offset;
 
 /// Registers of 16 lanes per window array: up to 8, i.e. 128 disparities. Past 4 the windows no
@@ -158,8 +159,7 @@ unsafe fn sweep<const NV: usize>(
         for v in &c[1..] {
             m = _mm256_min_epu16(m, *v);
         }
-        let m = _mm_min_epu16(_mm256_castsi256_si128(m), _mm256_extracti128_si256::<1>(m));
-        let best_cost = _mm_extract_epi16::<0>(_mm_minpos_epu16(m)) as u16;
+        let best_cost = hmin_epu16_256(m);
         let target = _mm256_set1_epi16(best_cost as i16);
         // The lowest feasible index at the minimum (ties go to the lowest disparity). Clamped to
         // `ks.start`: were every feasible sum u16::MAX (no sum of path costs reaches it), the
