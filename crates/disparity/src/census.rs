@@ -48,6 +48,13 @@ fn census_transform_with(
         }
         k => k,
     };
+    #[cfg(target_arch = "aarch64")]
+    let kernel = match kernel {
+        CensusKernel::Neon if tolerance.is_multiple_of(257) && is_byte_scaled(image) => {
+            CensusKernel::NeonBytes
+        }
+        k => k,
+    };
     let samples = Samples { samples: image.as_slice(), width, height };
     let shape = Window { width: window.width, height: window.height, tolerance };
     let rows_per_task = height.div_ceil(16).max(1);
@@ -57,7 +64,9 @@ fn census_transform_with(
         let mut padded = vec![0u16; len];
         #[cfg(target_arch = "x86_64")]
         let mut high_bytes = if kernel == CensusKernel::GfniBytes { vec![0u8; len] } else { Vec::new() };
-        #[cfg(not(target_arch = "x86_64"))]
+        #[cfg(target_arch = "aarch64")]
+        let mut high_bytes = if kernel == CensusKernel::NeonBytes { vec![0u8; len] } else { Vec::new() };
+        #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
         let mut high_bytes = Vec::new();
         for (i, bits) in rows.chunks_mut(width).enumerate() {
             census_row(kernel, samples, shape, task * rows_per_task + i, &mut padded, &mut high_bytes, bits);

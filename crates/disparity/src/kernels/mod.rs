@@ -838,6 +838,9 @@ pub(crate) enum CensusKernel {
     GfniBytes,
     #[cfg(target_arch = "aarch64")]
     Neon,
+    /// [`CensusKernel::Neon`] on the high bytes, for 8-bit images (see `census::is_byte_scaled`).
+    #[cfg(target_arch = "aarch64")]
+    NeonBytes,
 }
 
 impl CensusKernel {
@@ -893,6 +896,15 @@ pub(crate) fn census_row(
         #[cfg(target_arch = "aarch64")]
         // SAFETY: `CensusKernel::Neon` is only chosen at the NEON level, detected on this CPU.
         CensusKernel::Neon => unsafe { neon::census_row_neon(image, window, y, padded, bits) },
+        #[cfg(target_arch = "aarch64")]
+        // SAFETY: `CensusKernel::NeonBytes` is only made from `CensusKernel::Neon`, and then
+        // `high_bytes` is as long as `padded`; the image is at least 16 wide.
+        CensusKernel::NeonBytes if image.width >= 16 && window.tolerance.is_multiple_of(257) => unsafe {
+            neon::census_row_neon_bytes(image, window, y, high_bytes, bits)
+        },
+        #[cfg(target_arch = "aarch64")]
+        // SAFETY: as above.
+        CensusKernel::NeonBytes => unsafe { neon::census_row_neon(image, window, y, padded, bits) },
         CensusKernel::Generic => scalar::census_row_scalar(image, window, y, padded, bits),
     }
 }

@@ -341,6 +341,24 @@ pub(crate) fn pad_window_rows(image: Samples<'_>, window: Window, y: usize, padd
     }
 }
 
+/// [`pad_window_rows`] of the samples' high bytes: for byte-scaled images (`b · 257`, see
+/// `census::is_byte_scaled`), whose high bytes compare as the samples do.
+#[inline(always)]
+pub(crate) fn pad_window_rows_high_bytes(image: Samples<'_>, window: Window, y: usize, padded: &mut [u8]) {
+    let (width, height) = image.size();
+    let (rx, ry) = (window.width / 2, window.height / 2);
+    let pw = width + 2 * rx;
+    let high = |v: u16| (v >> 8) as u8;
+    for (dy, p) in padded.chunks_exact_mut(pw).enumerate() {
+        let src = image.row((y + dy).saturating_sub(ry).min(height - 1));
+        p[..rx].fill(high(src[0]));
+        for (d, &s) in p[rx..rx + width].iter_mut().zip(src) {
+            *d = high(s);
+        }
+        p[rx + width..].fill(high(src[width - 1]));
+    }
+}
+
 /// One row of the transform: one pass over the row per window position, so the comparisons of
 /// many pixels run side by side. A bit is set when the neighbour is darker than the centre by
 /// more than the window's tolerance.

@@ -4,7 +4,7 @@
 use std::arch::x86_64::*;
 
 use crate::kernels::layout::{Samples, Window};
-use crate::kernels::scalar::{census_row_scalar, pad_window_rows};
+use crate::kernels::scalar::{census_row_scalar, pad_window_rows, pad_window_rows_high_bytes};
 
 /// 64 masks of 64 bits, the rows of the bit matrix [`census_row_gfni`] transposes; aligned so
 /// each group of 8 rows is one aligned 512-bit load.
@@ -191,20 +191,12 @@ pub(in crate::kernels) unsafe fn census_row_gfni_bytes(
     padded: &mut [u8],
     bits: &mut [u64],
 ) {
-    let (width, height) = image.size();
+    let width = image.size().0;
     let (rx, ry) = (window.width / 2, window.height / 2);
     let pw = width + 2 * rx;
     let n = window.width * window.height - 1;
     assert!(width >= 64 && n <= 64 && padded.len() == window.height * pw && bits.len() == width);
-    let high = |v: u16| (v >> 8) as u8;
-    for (dy, p) in padded.chunks_exact_mut(pw).enumerate() {
-        let src = image.row((y + dy).saturating_sub(ry).min(height - 1));
-        p[..rx].fill(high(src[0]));
-        for (d, &s) in p[rx..rx + width].iter_mut().zip(src) {
-            *d = high(s);
-        }
-        p[rx + width..].fill(high(src[width - 1]));
-    }
+    pad_window_rows_high_bytes(image, window, y, padded);
     // As in `census_row_gfni`; the centres are the middle padded row.
     let offsets = neighbour_offsets(window, pw);
     let centre = &padded[ry * pw + rx..ry * pw + rx + width];
