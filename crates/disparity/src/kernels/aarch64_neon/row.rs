@@ -7,7 +7,9 @@
 //! them again, builds each path's input and looks up its P2 per pixel. Here the horizontal path
 //! never leaves the registers (its neighbours come from `EXT`), the P2 rows arrive made, and
 //! every register's 16-bit sums are stored once for all four paths. The paths continuing from
-//! the previous row stay in memory. The results are those of
+//! the previous row stay in memory. Only the registers holding disparities are stepped: a last
+//! register of padding (`nd` ≤ 16, 33–48, … in lanes padded to 32) has path costs 255 throughout
+//! (cost 255 plus anything saturates), so it is only stored. The results are those of
 //! [`crate::kernels::scalar::path_step_u8_scalar`] pixel by pixel.
 
 use std::arch::aarch64::*;
@@ -48,7 +50,7 @@ unsafe fn step(
 /// the previous row, their sum stored (or added) into `sum`.
 ///
 /// # Safety
-/// NEON; lengths as checked by [`crate::kernels::row_u8`], `lanes == 16 * NV`.
+/// NEON; lengths as checked by [`crate::kernels::row_u8`], `nd <= 16 * NV <= lanes`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 unsafe fn pixel<const NV: usize, const K: usize>(
@@ -64,7 +66,7 @@ unsafe fn pixel<const NV: usize, const K: usize>(
 ) {
     let Shape { width, lanes, nd, pad, p1 } = *shape;
     let stride = lanes + 2;
-    // SAFETY: pixel `x < width` has `lanes = 16 * NV` costs at `x * lanes`.
+    // SAFETY: pixel `x < width` has `lanes >= 16 * NV` costs at `x * lanes`.
     let c: [uint8x16_t; NV] =
         std::array::from_fn(|v| unsafe { vld1q_u8(cost.as_ptr().add(x * lanes + 16 * v)) });
     if i == 0 {
@@ -120,6 +122,10 @@ unsafe fn pixel<const NV: usize, const K: usize>(
             total[v][0] = vaddw_u8(total[v][0], vget_low_u8(o));
             total[v][1] = vaddw_high_u8(total[v][1], o);
         }
+        if lanes > 16 * NV {
+            // SAFETY: the register of padding lanes, `16 * NV + 16 == lanes`.
+            vst1q_u8(out.add(16 * NV), pad);
+        }
         from.out_mins[x] = vminvq_u8(m);
     }
     let s = &mut sum[x * nd..(x + 1) * nd];
@@ -138,7 +144,6 @@ unsafe fn pixel<const NV: usize, const K: usize>(
         } else if k < nd {
             store_last_sums(s, k, low, high, accumulate);
         }
-        // Registers past the last disparity hold only pads: their sums are not stored.
     }
 }
 
@@ -155,8 +160,8 @@ unsafe fn store_last_sums(s: &mut [u16], k: usize, low: uint16x8_t, high: uint16
 /// NEON [`crate::kernels::row_u8`] with the horizontal paths in `NV` registers of 16 lanes.
 ///
 /// # Safety
-/// The CPU must have NEON; lengths as checked by [`crate::kernels::row_u8`], and `lanes == 16 *
-/// NV`.
+/// The CPU must have NEON; lengths as checked by [`crate::kernels::row_u8`], and `nd <= 16 * NV
+/// <= lanes <= 16 * NV + 16`.
 #[target_feature(enable = "neon")]
 #[allow(clippy::too_many_arguments)]
 pub(in crate::kernels) unsafe fn row_neon<const NV: usize, const K: usize>(
@@ -171,6 +176,7 @@ pub(in crate::kernels) unsafe fn row_neon<const NV: usize, const K: usize>(
     accumulate: bool,
     mut trailing: Option<Trailing<'_>>,
 ) {
+    debug_assert!(nd <= 16 * NV && 16 * NV <= lanes && lanes <= 16 * NV + 16);
     let width = cost.len() / lanes;
     let pad = vdupq_n_u8(u8::MAX);
     let shape = Shape { width, lanes, nd, pad, p1: vdupq_n_u8(p1) };
