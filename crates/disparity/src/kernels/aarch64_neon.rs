@@ -14,7 +14,7 @@ use super::layout::{
 };
 use super::scalar::{
     census_costs_in_blocks, census_span_scalar, keep_smaller_scalar, pad_window_rows,
-    pad_window_rows_high_bytes,
+    pad_window_rows_high_bytes, window_offsets,
 };
 
 mod row;
@@ -504,23 +504,12 @@ pub(super) unsafe fn census_row_neon(
 ) {
     pad_window_rows(image, window, y, padded);
     let width = image.size().0;
-    let (rx, ry) = (window.width / 2, window.height / 2);
+    let rx = window.width / 2;
     let pw = width + 2 * rx;
     let centre = image.row(y);
     let n = window.width * window.height - 1;
     let tolerance = vdupq_n_u16(window.tolerance);
-    // Where each neighbour of the window (centre skipped, in the reference's order) starts in
-    // `padded`, relative to the pixel.
-    let mut offsets = [0usize; 64];
-    let mut i = 0;
-    for dy in 0..window.height {
-        for dx in 0..window.width {
-            if dx != rx || dy != ry {
-                offsets[i] = dy * pw + dx;
-                i += 1;
-            }
-        }
-    }
+    let offsets = window_offsets(window, pw);
     let whole = width - width % 8;
     for x in (0..whole).step_by(8) {
         // SAFETY: x + 8 <= width, the length of `centre` and of `bits`; each padded row holds
@@ -580,16 +569,7 @@ pub(super) unsafe fn census_row_neon_bytes(
     let n = window.width * window.height - 1;
     assert!(width >= 16 && n <= 64 && padded.len() == window.height * pw && bits.len() == width);
     pad_window_rows_high_bytes(image, window, y, padded);
-    let mut offsets = [0usize; 64];
-    let mut i = 0;
-    for dy in 0..window.height {
-        for dx in 0..window.width {
-            if dx != rx || dy != ry {
-                offsets[i] = dy * pw + dx;
-                i += 1;
-            }
-        }
-    }
+    let offsets = window_offsets(window, pw);
     let centre = &padded[ry * pw + rx..ry * pw + rx + width];
     let tolerance = vdupq_n_u8((window.tolerance / 257) as u8);
     let mut x0 = 0;

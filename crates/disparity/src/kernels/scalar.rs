@@ -341,6 +341,25 @@ pub(crate) fn pad_window_rows(image: Samples<'_>, window: Window, y: usize, padd
     }
 }
 
+/// Where each neighbour of the window (centre skipped, in the reference's bit order, most
+/// significant first) starts in the padded rows of [`pad_window_rows`] (`pw` samples each),
+/// relative to the pixel; entries past the `width · height − 1` neighbours are 0.
+#[inline(always)]
+pub(crate) fn window_offsets(window: Window, pw: usize) -> [usize; 64] {
+    let (rx, ry) = (window.width / 2, window.height / 2);
+    let mut offsets = [0usize; 64];
+    let mut i = 0;
+    for dy in 0..window.height {
+        for dx in 0..window.width {
+            if dx != rx || dy != ry {
+                offsets[i] = dy * pw + dx;
+                i += 1;
+            }
+        }
+    }
+    offsets
+}
+
 /// [`pad_window_rows`] of the samples' high bytes: for byte-scaled images (`b · 257`, see
 /// `census::is_byte_scaled`), whose high bytes compare as the samples do.
 #[inline(always)]

@@ -9,6 +9,7 @@ use super::layout::{
 };
 use super::scalar::{
     bt_fill_in_order, census_costs_in_blocks, census_span_scalar, keep_smaller_scalar, pad_window_rows,
+    window_offsets,
 };
 
 mod row;
@@ -557,25 +558,14 @@ pub(super) unsafe fn census_row_avx2(
 ) {
     pad_window_rows(image, window, y, padded);
     let width = image.size().0;
-    let (rx, ry) = (window.width / 2, window.height / 2);
+    let rx = window.width / 2;
     let pw = width + 2 * rx;
     let centre = image.row(y);
     let n = window.width * window.height - 1;
     let tolerance = _mm256_set1_epi16(window.tolerance as i16);
     let one = _mm256_set1_epi16(1);
     let zero = _mm256_setzero_si256();
-    // Where each neighbour of the window (centre skipped, in the reference's order) starts in
-    // `padded`, relative to the pixel.
-    let mut offsets = [0usize; 64];
-    let mut i = 0;
-    for dy in 0..window.height {
-        for dx in 0..window.width {
-            if dx != rx || dy != ry {
-                offsets[i] = dy * pw + dx;
-                i += 1;
-            }
-        }
-    }
+    let offsets = window_offsets(window, pw);
     let whole = width - width % 16;
     for x in (0..whole).step_by(16) {
         // SAFETY: x + 16 <= width, the length of `centre` and of `bits`; each padded row holds
