@@ -591,7 +591,7 @@ pub(super) unsafe fn census_row_neon_bytes(
             *a = v;
         }
         // Bytes to 16-bit pairs (bytes 2k, 2k + 1), to 32-bit quadruples, to 64-bit strings;
-        // `h` picks the lower or upper half of the pixels at each round.
+        // each round's `zip1` takes the lower half of the pixels it gets, `zip2` the upper.
         let pairs: [[uint16x8_t; 2]; 4] = std::array::from_fn(|k| {
             let (a, b) = (acc[2 * k], acc[2 * k + 1]);
             [vreinterpretq_u16_u8(vzip1q_u8(a, b)), vreinterpretq_u16_u8(vzip2q_u8(a, b))]

@@ -147,7 +147,7 @@ impl Level {
         }
     }
 
-    /// Whether this is the AVX-512 level (its own kernels: VPOPCNTDQ cost rows, VBMI census,
+    /// Whether this is the AVX-512 level (its own kernels: VPOPCNTDQ cost rows, GFNI census,
     /// the 64-lane row kernels, the 32-lane fused winner-takes-all). False on every other
     /// architecture.
     pub(crate) fn avx512(self) -> bool {
@@ -738,8 +738,9 @@ pub(crate) fn row_u8<const K: usize>(
         return false;
     }
     // AVX-512 CPUs run rows of 32 lanes (up to 32 disparities) on the AVX2 kernel too: in one
-    // 64-lane register half the lanes would be padding (tsukuba's and venus' row kernel took 0.68x
-    // the time). At 96 lanes the AVX2 kernel's three registers spill and AVX-512 stays faster.
+    // 64-lane register half the lanes would be padding (tsukuba's row kernel: 0.68x the profile
+    // samples). At 64 lanes two AVX2 registers take as long as one AVX-512 register, at 96 the
+    // AVX2 kernel's three registers spill (docs/perf-notes.md, stop 48).
     #[cfg(target_arch = "x86_64")]
     if level == Level::Avx2 || (level == Level::Avx512 && lanes == 32) {
         macro_rules! run {
