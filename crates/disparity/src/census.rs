@@ -41,33 +41,24 @@ fn census_transform_with(
     if width == 0 || height == 0 {
         return;
     }
-    #[cfg(target_arch = "x86_64")]
-    let kernel = match kernel {
-        CensusKernel::Gfni if tolerance.is_multiple_of(257) && is_byte_scaled(image) => {
-            CensusKernel::GfniBytes
+    let kernel = match kernel.on_bytes() {
+        Some((bytes, min_width))
+            if width >= min_width && tolerance.is_multiple_of(257) && is_byte_scaled(image) =>
+        {
+            bytes
         }
-        k => k,
+        _ => kernel,
     };
-    #[cfg(target_arch = "aarch64")]
-    let kernel = match kernel {
-        CensusKernel::Neon if tolerance.is_multiple_of(257) && is_byte_scaled(image) => {
-            CensusKernel::NeonBytes
-        }
-        k => k,
-    };
+    let on_bytes = kernel.reads_high_bytes();
     let samples = Samples { samples: image.as_slice(), width, height };
     let shape = Window { width: window.width, height: window.height, tolerance };
     let rows_per_task = height.div_ceil(16).max(1);
     out.as_mut_slice().par_chunks_mut(width * rows_per_task).enumerate().for_each(|(task, rows)| {
         // Each window row, extended by the border pixels, so the inner loops need no clamping.
         let len = window.height * (width + window.width - 1);
-        let mut padded = vec![0u16; len];
-        #[cfg(target_arch = "x86_64")]
-        let mut high_bytes = if kernel == CensusKernel::GfniBytes { vec![0u8; len] } else { Vec::new() };
-        #[cfg(target_arch = "aarch64")]
-        let mut high_bytes = if kernel == CensusKernel::NeonBytes { vec![0u8; len] } else { Vec::new() };
-        #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
-        let mut high_bytes = Vec::new();
+        // Only the buffer the kernel pads into.
+        let mut padded = vec![0u16; if on_bytes { 0 } else { len }];
+        let mut high_bytes = vec![0u8; if on_bytes { len } else { 0 }];
         for (i, bits) in rows.chunks_mut(width).enumerate() {
             census_row(kernel, samples, shape, task * rows_per_task + i, &mut padded, &mut high_bytes, bits);
         }

@@ -568,6 +568,7 @@ pub(super) unsafe fn census_row_neon_bytes(
     let pw = width + 2 * rx;
     let n = window.width * window.height - 1;
     assert!(width >= 16 && n <= 64 && padded.len() == window.height * pw && bits.len() == width);
+    assert!(window.tolerance.is_multiple_of(257), "a tolerance in whole bytes");
     pad_window_rows_high_bytes(image, window, y, padded);
     let offsets = window_offsets(window, pw);
     let centre = &padded[ry * pw + rx..ry * pw + rx + width];

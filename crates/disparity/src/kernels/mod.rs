@@ -870,6 +870,30 @@ impl CensusKernel {
         let _ = level;
         CensusKernel::Generic
     }
+
+    /// The variant of this kernel on the high bytes of 8-bit images (see
+    /// `census::is_byte_scaled`), if it has one, and the narrowest image that variant takes.
+    pub(crate) fn on_bytes(self) -> Option<(CensusKernel, usize)> {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            CensusKernel::Gfni => Some((CensusKernel::GfniBytes, 64)),
+            #[cfg(target_arch = "aarch64")]
+            CensusKernel::Neon => Some((CensusKernel::NeonBytes, 16)),
+            _ => None,
+        }
+    }
+
+    /// Whether the kernel pads the window rows as bytes (`census_row`'s `high_bytes`) rather
+    /// than as samples (`padded`).
+    pub(crate) fn reads_high_bytes(self) -> bool {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            CensusKernel::GfniBytes => true,
+            #[cfg(target_arch = "aarch64")]
+            CensusKernel::NeonBytes => true,
+            _ => false,
+        }
+    }
 }
 
 pub(crate) fn census_row(
@@ -886,14 +910,11 @@ pub(crate) fn census_row(
         // SAFETY: `CensusKernel::Gfni` is only chosen when the CPU has AVX-512F/BW/VL/VBMI and GFNI.
         CensusKernel::Gfni => unsafe { avx512::census_row_gfni(image, window, y, padded, bits) },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `CensusKernel::GfniBytes` is only made from `CensusKernel::Gfni` (so the CPU has what it
-        // needs) and then `high_bytes` is as long as `padded`; the image is at least 64 wide.
-        CensusKernel::GfniBytes if image.width >= 64 && window.tolerance.is_multiple_of(257) => unsafe {
+        // SAFETY: `CensusKernel::GfniBytes` is only made from `CensusKernel::Gfni`, so the CPU has
+        // what it needs; the kernel checks the lengths and the width.
+        CensusKernel::GfniBytes => unsafe {
             avx512::census_row_gfni_bytes(image, window, y, high_bytes, bits)
         },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above (only the CPU features matter here).
-        CensusKernel::GfniBytes => unsafe { avx512::census_row_gfni(image, window, y, padded, bits) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `CensusKernel::Avx512` is only chosen at the AVX-512 level, detected on this CPU.
         CensusKernel::Avx512 => unsafe { avx512::census_row_avx512(image, window, y, padded, bits) },
@@ -904,14 +925,9 @@ pub(crate) fn census_row(
         // SAFETY: `CensusKernel::Neon` is only chosen at the NEON level, detected on this CPU.
         CensusKernel::Neon => unsafe { neon::census_row_neon(image, window, y, padded, bits) },
         #[cfg(target_arch = "aarch64")]
-        // SAFETY: `CensusKernel::NeonBytes` is only made from `CensusKernel::Neon`, and then
-        // `high_bytes` is as long as `padded`; the image is at least 16 wide.
-        CensusKernel::NeonBytes if image.width >= 16 && window.tolerance.is_multiple_of(257) => unsafe {
-            neon::census_row_neon_bytes(image, window, y, high_bytes, bits)
-        },
-        #[cfg(target_arch = "aarch64")]
-        // SAFETY: as above.
-        CensusKernel::NeonBytes => unsafe { neon::census_row_neon(image, window, y, padded, bits) },
+        // SAFETY: `CensusKernel::NeonBytes` is only made from `CensusKernel::Neon`; the kernel
+        // checks the lengths and the width.
+        CensusKernel::NeonBytes => unsafe { neon::census_row_neon_bytes(image, window, y, high_bytes, bits) },
         CensusKernel::Generic => scalar::census_row_scalar(image, window, y, padded, bits),
     }
 }

@@ -22,6 +22,8 @@ struct Shape {
     width: usize,
     lanes: usize,
     nd: usize,
+    /// Whether a register of padding lanes follows the `NV` stepped ones (`lanes == 16 * NV + 16`).
+    pad_register: bool,
     pad: uint8x16_t,
     p1: uint8x16_t,
 }
@@ -64,7 +66,7 @@ unsafe fn pixel<const NV: usize, const K: usize>(
     sum: &mut [u16],
     accumulate: bool,
 ) {
-    let Shape { width, lanes, nd, pad, p1 } = *shape;
+    let Shape { width, lanes, nd, pad_register, pad, p1 } = *shape;
     let stride = lanes + 2;
     // SAFETY: pixel `x < width` has `lanes >= 16 * NV` costs at `x * lanes`.
     let c: [uint8x16_t; NV] =
@@ -122,7 +124,7 @@ unsafe fn pixel<const NV: usize, const K: usize>(
             total[v][0] = vaddw_u8(total[v][0], vget_low_u8(o));
             total[v][1] = vaddw_high_u8(total[v][1], o);
         }
-        if lanes > 16 * NV {
+        if pad_register {
             // SAFETY: the register of padding lanes, `16 * NV + 16 == lanes`.
             vst1q_u8(out.add(16 * NV), pad);
         }
@@ -179,7 +181,7 @@ pub(in crate::kernels) unsafe fn row_neon<const NV: usize, const K: usize>(
     debug_assert!(nd <= 16 * NV && 16 * NV <= lanes && lanes <= 16 * NV + 16);
     let width = cost.len() / lanes;
     let pad = vdupq_n_u8(u8::MAX);
-    let shape = Shape { width, lanes, nd, pad, p1: vdupq_n_u8(p1) };
+    let shape = Shape { width, lanes, nd, pad_register: lanes > 16 * NV, pad, p1: vdupq_n_u8(p1) };
     let mut h = Horizontal { path: [pad; NV], min: 0 };
     let mut back = Horizontal { path: [pad; NV], min: 0 };
     for i in 0..width {

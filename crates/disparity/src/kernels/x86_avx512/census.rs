@@ -196,6 +196,7 @@ pub(in crate::kernels) unsafe fn census_row_gfni_bytes(
     let pw = width + 2 * rx;
     let n = window.width * window.height - 1;
     assert!(width >= 64 && n <= 64 && padded.len() == window.height * pw && bits.len() == width);
+    assert!(window.tolerance.is_multiple_of(257), "a tolerance in whole bytes");
     pad_window_rows_high_bytes(image, window, y, padded);
     // As in `census_row_gfni`; the centres are the middle padded row.
     let offsets = neighbour_offsets(window, pw);
