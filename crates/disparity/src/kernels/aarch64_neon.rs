@@ -17,7 +17,9 @@ use super::scalar::{
     pad_window_rows_high_bytes, window_offsets,
 };
 
+mod median;
 mod row;
+pub(super) use median::median3x3_row_neon;
 pub(super) use row::row_neon;
 
 /// NEON [`super::path_step`]: 8 disparities per instruction ([`path_step_neon_body`]).

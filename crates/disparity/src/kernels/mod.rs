@@ -646,7 +646,10 @@ pub(crate) fn median3x3_row(level: Level, rows: [&[f32]; 3], out: &mut [f32]) {
     // SAFETY: AVX-512F/BW/VL (the level is only chosen when present); lengths checked above.
     #[cfg(target_arch = "x86_64")]
     let done = if level.avx512() { unsafe { avx512::median3x3_row_avx512(rows, out) } } else { 0 };
-    #[cfg(not(target_arch = "x86_64"))]
+    // SAFETY: NEON (the level is only chosen when present); lengths checked above.
+    #[cfg(target_arch = "aarch64")]
+    let done = if level == Level::Neon { unsafe { neon::median3x3_row_neon(rows, out) } } else { 0 };
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
     let done = 0;
     let rows = rows.map(|r| &r[done..]);
     let out = &mut out[done..];

@@ -466,8 +466,8 @@ macro_rules! median9_network {
         )*
     };
 }
-// The AVX-512 kernel runs the same network on its registers.
-#[cfg(target_arch = "x86_64")]
+// The AVX-512 and NEON kernels run the same network on their registers.
+#[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
 pub(crate) use median9_network;
 
 /// Lane-wise minimum and maximum of `B` keys, the network's exchange.
