@@ -636,41 +636,30 @@ pub(crate) fn p2_row_u8(level: Level, table: &[u8; 256], a: &[u16], b: &[u16], o
 
 /// The 3 × 3 median of one row of a disparity map over the valid values of each window
 /// ([`scalar::median3x3_row_scalar`]): `rows` are the row above, the row and the row below,
-/// each framed by one value on either side (NaN beyond the map), `out` the row's pixels. With
-/// AVX-512 16 pixels per step (the last ones as on the other levels), elsewhere lanes the
-/// compiler vectorises ([`scalar::median3x3_row_lanes`]).
-// Elsewhere there are only the lanes.
-#[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
+/// each framed by one value on either side (NaN beyond the map), `out` the row's pixels. 16
+/// pixels per step with AVX-512, 8 with AVX2, 4 with NEON; the last few (and the scalar level)
+/// by the portable lanes ([`scalar::median3x3_row_lanes`]).
 pub(crate) fn median3x3_row(level: Level, rows: [&[f32]; 3], out: &mut [f32]) {
     assert!(rows.iter().all(|r| r.len() == out.len() + 2));
-    // SAFETY: AVX-512F/BW/VL (the level is only chosen when present); lengths checked above.
+    // Each SIMD kernel returns how many pixels it wrote; the next narrower one continues.
+    #[allow(unused_mut)]
+    let mut done = 0;
+    // SAFETY (all three): the level is only chosen when the CPU has it (AVX-512F/BW/VL, AVX2,
+    // NEON); lengths checked above.
     #[cfg(target_arch = "x86_64")]
-    let done = if level.avx512() { unsafe { avx512::median3x3_row_avx512(rows, out) } } else { 0 };
-    // SAFETY: NEON (the level is only chosen when present); lengths checked above.
-    #[cfg(target_arch = "aarch64")]
-    let done = if level == Level::Neon { unsafe { neon::median3x3_row_neon(rows, out) } } else { 0 };
-    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
-    let done = 0;
-    let rows = rows.map(|r| &r[done..]);
-    let out = &mut out[done..];
-    #[cfg(target_arch = "x86_64")]
-    match level {
-        // SAFETY: AVX2 is part of both levels, which are only chosen when present.
-        Level::Avx2 | Level::Avx512 => unsafe { median3x3_row_lanes_avx2(rows, out) },
-        Level::Scalar => scalar::median3x3_row_lanes(rows, out),
+    if level.avx512() {
+        done = unsafe { avx512::median3x3_row_avx512(rows, out) };
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    scalar::median3x3_row_lanes(rows, out);
-}
-
-/// [`scalar::median3x3_row_lanes`] compiled for AVX2.
-///
-/// # Safety
-/// The CPU must have AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn median3x3_row_lanes_avx2(rows: [&[f32]; 3], out: &mut [f32]) {
-    scalar::median3x3_row_lanes(rows, out)
+    #[cfg(target_arch = "x86_64")]
+    if level >= Level::Avx2 {
+        done += unsafe { avx2::median3x3_row_avx2(rows.map(|r| &r[done..]), &mut out[done..]) };
+    }
+    #[cfg(target_arch = "aarch64")]
+    if level == Level::Neon {
+        done = unsafe { neon::median3x3_row_neon(rows, out) };
+    }
+    let _ = level;
+    scalar::median3x3_row_lanes(rows.map(|r| &r[done..]), &mut out[done..]);
 }
 
 /// The most lanes the AVX-512 register kernel keeps (four 64-lane registers); longer vectors

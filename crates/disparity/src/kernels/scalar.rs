@@ -546,9 +546,8 @@ fn median3x3_lanes<const B: usize>(rows: [&[f32]; 3], x: usize, out: &mut [f32])
     }
 }
 
-/// [`median3x3_row_scalar`] as lanes the compiler vectorises at each level (8 pixels at a time,
-/// one 256-bit register per window entry): the kernel below AVX-512 and for the AVX-512
-/// kernel's last pixels.
+/// [`median3x3_row_scalar`] as lanes the compiler can vectorise (8 pixels at a time): the
+/// scalar level's kernel, and the SIMD kernels' last pixels.
 #[inline(always)]
 pub(crate) fn median3x3_row_lanes(rows: [&[f32]; 3], out: &mut [f32]) {
     const B: usize = 8;

@@ -12,7 +12,9 @@ use super::scalar::{
     window_offsets,
 };
 
+mod median;
 mod row;
+pub(super) use median::median3x3_row_avx2;
 pub(super) use row::row_avx2;
 
 /// Minimum of the 16 unsigned 16-bit lanes.
