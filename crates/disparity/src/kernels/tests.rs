@@ -444,3 +444,14 @@ fn the_bit_matrix_transpose_transposes() {
         }
     }
 }
+
+/// The default window's computed offsets are its table's.
+#[test]
+fn offset_in_9x7_is_the_window_table() {
+    for pw in [16, 393, 1000] {
+        let window = Window { width: 9, height: 7, tolerance: 0 };
+        let table = window_offsets(window, pw);
+        let computed: Vec<usize> = (0..62).map(|i| offset_in_9x7(i, pw)).collect();
+        assert_eq!(computed, table[..62]);
+    }
+}
