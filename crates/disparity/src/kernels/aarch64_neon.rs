@@ -14,7 +14,7 @@ use super::layout::{
 };
 use super::scalar::{
     census_costs_in_blocks, census_span_scalar, keep_smaller_scalar, offset_in_9x7, pad_window_rows,
-    pad_window_rows_high_bytes, window_offsets,
+    pad_window_rows_high_bytes, window_offsets, HighByteRows,
 };
 
 mod median;
@@ -591,15 +591,10 @@ pub(super) unsafe fn census_row_neon_bytes(
     padded: &mut [u8],
     bits: &mut [u64],
 ) {
-    let width = image.size().0;
-    let (rx, ry) = (window.width / 2, window.height / 2);
-    let pw = width + 2 * rx;
-    let n = window.width * window.height - 1;
-    assert!(width >= 16 && n <= 64 && padded.len() == window.height * pw && bits.len() == width);
-    assert!(window.tolerance.is_multiple_of(257), "a tolerance in whole bytes");
-    pad_window_rows_high_bytes(image, window, y, padded);
-    let centre = &padded[ry * pw + rx..ry * pw + rx + width];
-    let tolerance = vdupq_n_u8((window.tolerance / 257) as u8);
+    let HighByteRows { pw, centre, n, tolerance } =
+        pad_window_rows_high_bytes(image, window, y, padded, bits, 16);
+    let centre = &padded[centre..centre + bits.len()];
+    let tolerance = vdupq_n_u8(tolerance);
     if (window.width, window.height) == (9, 7) {
         // As in `census_row_neon`: the default window's offsets unroll into constants.
         census_bytes_steps_neon(padded, centre, 62, tolerance, bits, |i| offset_in_9x7(i, pw));

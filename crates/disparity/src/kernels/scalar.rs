@@ -372,13 +372,34 @@ pub(crate) fn offset_in_9x7(i: usize, pw: usize) -> usize {
     p / 9 * pw + p % 9
 }
 
+/// The padded rows of a byte census kernel ([`pad_window_rows_high_bytes`]): their width, where
+/// the first centre is, the neighbour count and the tolerance in high bytes.
+pub(crate) struct HighByteRows {
+    pub(crate) pw: usize,
+    pub(crate) centre: usize,
+    pub(crate) n: usize,
+    pub(crate) tolerance: u8,
+}
+
 /// [`pad_window_rows`] of the samples' high bytes: for byte-scaled images (`b · 257`, see
-/// `census::is_byte_scaled`), whose high bytes compare as the samples do.
+/// `census::is_byte_scaled`), whose high bytes compare as the samples do. First checks what the
+/// byte kernels' unchecked loads rely on (an image `min_width` or wider, `padded` and `bits`
+/// as long as the row needs, at most 64 neighbours) and a tolerance in whole bytes.
 #[inline(always)]
-pub(crate) fn pad_window_rows_high_bytes(image: Samples<'_>, window: Window, y: usize, padded: &mut [u8]) {
+pub(crate) fn pad_window_rows_high_bytes(
+    image: Samples<'_>,
+    window: Window,
+    y: usize,
+    padded: &mut [u8],
+    bits: &[u64],
+    min_width: usize,
+) -> HighByteRows {
     let (width, height) = image.size();
     let (rx, ry) = (window.width / 2, window.height / 2);
     let pw = width + 2 * rx;
+    let n = window.width * window.height - 1;
+    assert!(width >= min_width && n <= 64 && padded.len() == window.height * pw && bits.len() == width);
+    assert!(window.tolerance.is_multiple_of(257), "a tolerance in whole bytes");
     let high = |v: u16| (v >> 8) as u8;
     for (dy, p) in padded.chunks_exact_mut(pw).enumerate() {
         let src = image.row((y + dy).saturating_sub(ry).min(height - 1));
@@ -388,6 +409,7 @@ pub(crate) fn pad_window_rows_high_bytes(image: Samples<'_>, window: Window, y: 
         }
         p[rx + width..].fill(high(src[width - 1]));
     }
+    HighByteRows { pw, centre: ry * pw + rx, n, tolerance: (window.tolerance / 257) as u8 }
 }
 
 /// One row of the transform: one pass over the row per window position, so the comparisons of

@@ -4,7 +4,9 @@
 use std::arch::x86_64::*;
 
 use crate::kernels::layout::{Samples, Window};
-use crate::kernels::scalar::{census_row_scalar, pad_window_rows, pad_window_rows_high_bytes};
+use crate::kernels::scalar::{
+    census_row_scalar, pad_window_rows, pad_window_rows_high_bytes, window_offsets, HighByteRows,
+};
 
 /// 64 masks of 64 bits, the rows of the bit matrix [`census_row_gfni`] transposes; aligned so
 /// each group of 8 rows is one aligned 512-bit load.
@@ -163,17 +165,9 @@ pub(in crate::kernels) unsafe fn census_row_gfni(
 /// `offsets[i]`: where in the padded window rows (`pw` entries each) the neighbour of census bit
 /// `i` of pixel 0 is. Window position `r` (row by row, centre skipped) is bit `n - 1 - r`.
 fn neighbour_offsets(window: Window, pw: usize) -> [usize; 64] {
-    let (rx, ry) = (window.width / 2, window.height / 2);
-    let mut offsets = [0usize; 64];
-    let mut bit = window.width * window.height - 1;
-    for dy in 0..window.height {
-        for dx in 0..window.width {
-            if (dy, dx) != (ry, rx) {
-                bit -= 1;
-                offsets[bit] = dy * pw + dx;
-            }
-        }
-    }
+    // `window_offsets` lists the positions in that order, so bit i's is entry n - 1 - i.
+    let mut offsets = window_offsets(window, pw);
+    offsets[..window.width * window.height - 1].reverse();
     offsets
 }
 
@@ -192,18 +186,13 @@ pub(in crate::kernels) unsafe fn census_row_gfni_bytes(
     bits: &mut [u64],
 ) {
     let width = image.size().0;
-    let (rx, ry) = (window.width / 2, window.height / 2);
-    let pw = width + 2 * rx;
-    let n = window.width * window.height - 1;
-    assert!(width >= 64 && n <= 64 && padded.len() == window.height * pw && bits.len() == width);
-    assert!(window.tolerance.is_multiple_of(257), "a tolerance in whole bytes");
-    pad_window_rows_high_bytes(image, window, y, padded);
+    let HighByteRows { pw, centre, n, tolerance } =
+        pad_window_rows_high_bytes(image, window, y, padded, bits, 64);
     // As in `census_row_gfni`; the centres are the middle padded row.
     let offsets = neighbour_offsets(window, pw);
-    let centre = &padded[ry * pw + rx..ry * pw + rx + width];
+    let centre = &padded[centre..centre + width];
     let mut matrix = BitRows([0; 64]);
-    // Byte-scaled samples: the tolerance in high bytes (a multiple of 257, checked by the caller).
-    let tolerance = _mm512_set1_epi8((window.tolerance / 257) as i8);
+    let tolerance = _mm512_set1_epi8(tolerance as i8);
     let mut x0 = 0;
     loop {
         let x = x0.min(width - 64);
